@@ -1,0 +1,53 @@
+"""Typed exceptions of cfcontact.
+
+Every error that a user can provoke with bad input is a subclass of
+:class:`CfcontactError`, so ``except cfcontact.CfcontactError`` catches them all.
+Messages name the bad value and what would be valid.
+"""
+
+from __future__ import annotations
+
+
+class CfcontactError(Exception):
+    """Base class of every cfcontact error."""
+
+
+class InputError(CfcontactError, ValueError):
+    """Bad user input: a wrong shape, a negative friction coefficient, an unknown tag..."""
+
+
+class GeometryError(InputError):
+    """A mesh or geometry that cannot be used (unknown tag, non-matching interface...)."""
+
+
+class SingularSystemError(CfcontactError):
+    """A linear system could not be factored (e.g. K singular: too few Dirichlet conditions)."""
+
+
+class ConvergenceError(CfcontactError):
+    """The semi-smooth Newton method did not converge.
+
+    Attributes
+    ----------
+    iterations : int
+        Iterations performed.
+    last : object
+        The last iterate (a :class:`cfcontact.Solution`), for inspection.
+    """
+
+    def __init__(self, message, iterations=None, last=None):
+        super().__init__(message)
+        self.iterations = iterations
+        self.last = last
+
+
+class PathError(CfcontactError):
+    """A path-following run could not proceed (see the attached event)."""
+
+    def __init__(self, message, event=None):
+        super().__init__(message)
+        self.event = event
+
+
+class EnumerationTooLarge(InputError):
+    """Exhaustive enumeration refused because the problem is too large."""

@@ -1,0 +1,142 @@
+"""PETSc/NumPy glue shared by every layer (no dolfinx here).
+
+Row distribution convention: a global index range ``[0, n)`` is split over the
+ranks of a communicator in contiguous blocks, as ``PETSc.DECIDE`` would
+(:func:`ownership`).  Matrices and vectors built here follow it; :func:`gather_vec`
+and :func:`gather_mat` return whole objects on every rank.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+
+def ownership(n: int, comm) -> np.ndarray:
+    """Block boundaries ``r[0]=0 <= r[1] <= ... <= r[size]=n`` of an ``n``-range over ``comm``."""
+    size = comm.Get_size()
+    counts = np.full(size, n // size, dtype=np.int64)
+    counts[: n % size] += 1
+    return np.concatenate([[0], np.cumsum(counts)])
+
+
+def owner_of(idx: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+    """Rank owning each global index."""
+    return np.searchsorted(ranges, idx, side="right") - 1
+
+
+def _redistribute(rows, payload, ranges, comm):
+    """Send each (row, *payload) entry to the rank owning ``row``; return the received arrays."""
+    size = comm.Get_size()
+    rows = np.asarray(rows, dtype=np.int64)
+    if size == 1:
+        return rows, [np.asarray(p) for p in payload]
+    dest = owner_of(rows, ranges)
+    order = np.argsort(dest, kind="stable")
+    send_counts = np.bincount(dest, minlength=size).astype(np.int64)
+    recv_counts = np.empty(size, dtype=np.int64)
+    comm.Alltoall(send_counts, recv_counts)
+    sdispl = np.concatenate([[0], np.cumsum(send_counts)[:-1]])
+    rdispl = np.concatenate([[0], np.cumsum(recv_counts)[:-1]])
+    out = []
+    for arr in [rows] + [np.asarray(p) for p in payload]:
+        arr = np.ascontiguousarray(arr[order])
+        recv = np.empty(int(recv_counts.sum()), dtype=arr.dtype)
+        mpitype = MPI._typedict[arr.dtype.char]
+        comm.Alltoallv([arr, send_counts, sdispl, mpitype], [recv, recv_counts, rdispl, mpitype])
+        out.append(recv)
+    return out[0], out[1:]
+
+
+def mat_from_triplets(rows, cols, vals, shape, comm=MPI.COMM_WORLD, row_ranges=None, col_ranges=None):
+    """Distributed AIJ matrix from triplets that any rank may hold for any row (duplicates add up)."""
+    m, n = int(shape[0]), int(shape[1])
+    row_ranges = ownership(m, comm) if row_ranges is None else np.asarray(row_ranges)
+    col_ranges = ownership(n, comm) if col_ranges is None else np.asarray(col_ranges)
+    r, (c, v) = _redistribute(rows, [np.asarray(cols, dtype=np.int64), np.asarray(vals, dtype=PETSc.ScalarType)], row_ranges, comm)
+    rank = comm.Get_rank()
+    r0, r1 = int(row_ranges[rank]), int(row_ranges[rank + 1])
+    local = sp.csr_matrix((v, (r - r0, c)), shape=(r1 - r0, n))
+    local.sum_duplicates()
+    local.sort_indices()
+    return _mat_from_local_csr(local, (r1 - r0, m), (int(col_ranges[rank + 1] - col_ranges[rank]), n), comm)
+
+
+def _mat_from_local_csr(local, rsize, csize, comm):
+    A = PETSc.Mat().createAIJ(
+        size=(rsize, csize),
+        csr=(local.indptr.astype(PETSc.IntType), local.indices.astype(PETSc.IntType), local.data.astype(PETSc.ScalarType)),
+        comm=comm,
+    )
+    A.assemble()
+    return A
+
+
+def mat_from_scipy(A, comm=MPI.COMM_WORLD, row_ranges=None, col_ranges=None):
+    """Distributed AIJ matrix from a SciPy/NumPy matrix given whole on every rank."""
+    A = sp.csr_matrix(A, dtype=PETSc.ScalarType)
+    m, n = A.shape
+    row_ranges = ownership(m, comm) if row_ranges is None else row_ranges
+    col_ranges = ownership(n, comm) if col_ranges is None else col_ranges
+    rank = comm.Get_rank()
+    local = A[int(row_ranges[rank]): int(row_ranges[rank + 1])]
+    local.sort_indices()
+    return _mat_from_local_csr(local, (local.shape[0], m), (int(col_ranges[rank + 1] - col_ranges[rank]), n), comm)
+
+
+def vec_from_numpy(x, comm=MPI.COMM_WORLD, ranges=None):
+    """Distributed Vec from an array given whole on every rank."""
+    x = np.asarray(x, dtype=PETSc.ScalarType)
+    ranges = ownership(x.size, comm) if ranges is None else ranges
+    rank = comm.Get_rank()
+    v = PETSc.Vec().createMPI((int(ranges[rank + 1] - ranges[rank]), x.size), comm=comm)
+    v.getArray()[:] = x[int(ranges[rank]): int(ranges[rank + 1])]
+    return v
+
+
+def vec_from_triplets(idx, vals, n, comm=MPI.COMM_WORLD, ranges=None):
+    """Distributed Vec from (index, value) pairs any rank may hold (duplicates add up)."""
+    ranges = ownership(n, comm) if ranges is None else np.asarray(ranges)
+    r, (v,) = _redistribute(idx, [np.asarray(vals, dtype=PETSc.ScalarType)], ranges, comm)
+    rank = comm.Get_rank()
+    r0, r1 = int(ranges[rank]), int(ranges[rank + 1])
+    local = np.zeros(r1 - r0, dtype=PETSc.ScalarType)
+    np.add.at(local, r - r0, v)
+    vec = PETSc.Vec().createMPI((r1 - r0, n), comm=comm)
+    vec.getArray()[:] = local
+    return vec
+
+
+def gather_vec(v) -> np.ndarray:
+    """The whole of a distributed Vec as a NumPy array on every rank."""
+    comm = v.getComm().tompi4py()
+    local = np.array(v.getArray(readonly=True), copy=True)
+    if comm.Get_size() == 1:
+        return local
+    return np.concatenate(comm.allgather(local))
+
+
+def gather_mat(A) -> sp.csr_matrix:
+    """The whole of a distributed AIJ matrix as a SciPy CSR matrix on every rank."""
+    comm = A.getComm().tompi4py()
+    m, n = A.getSize()
+    ai, aj, av = A.getValuesCSR()
+    parts = comm.allgather((np.asarray(ai), np.asarray(aj), np.asarray(av)))
+    data, indices, indptr = [], [], [np.zeros(1, dtype=np.int64)]
+    offset = 0
+    for ai_, aj_, av_ in parts:
+        data.append(av_)
+        indices.append(aj_)
+        indptr.append(ai_[1:].astype(np.int64) + offset)
+        offset += int(ai_[-1])
+    return sp.csr_matrix((np.concatenate(data), np.concatenate(indices), np.concatenate(indptr)), shape=(m, n))
+
+
+def local_csr(A) -> sp.csr_matrix:
+    """The locally owned rows of an AIJ matrix, with global column indices."""
+    m, n = A.getSize()
+    r0, r1 = A.getOwnershipRange()
+    ai, aj, av = A.getValuesCSR()
+    return sp.csr_matrix((np.asarray(av).copy(), np.asarray(aj).copy(), np.asarray(ai).copy()), shape=(r1 - r0, n))

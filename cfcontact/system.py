@@ -1,0 +1,284 @@
+"""The contact-system object: the only thing the solver layers see.
+
+A :class:`ContactSystem` holds the discrete problem of method.md (1)-(4)::
+
+    K u + N^T lam_n + T^T lam_t = f(alpha) = (1 - alpha) f1 + alpha f2
+    N u <= 0, lam_n >= 0, lam_n^T N u = 0, Coulomb's law with coefficient F
+
+as PETSc objects (K: n x n AIJ, N and T: m x n AIJ, f1 and f2: Vec) on one MPI
+communicator, plus the friction coefficient F and the augmentation parameter rho.
+Dirichlet DOFs are *eliminated*: K holds free DOFs only, so K is SPD when the
+bodies are clamped.  It can come from the FEM assembly layer
+(:func:`cfcontact.two_blocks`, :func:`cfcontact.assembly.assemble_contact_system`)
+or from plain matrices (:meth:`ContactSystem.from_arrays`) for lumped models.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from cfcontact import linalg
+from cfcontact.errors import InputError
+
+
+@dataclass(eq=False)
+class ContactGeometry:
+    """Plain NumPy description of a FEM model, for pictures and for reading results.
+
+    Attributes
+    ----------
+    points : (P, 2) float array
+        Mesh node coordinates (all bodies, rank-independent numbering).
+    cells : (C, k) int array
+        Cells as node indices (k = 3 triangles, k = 4 quadrilaterals in VTK order).
+    cell_body : (C,) int array
+        Body of each cell (1 = upper body Omega^1, 2 = lower body Omega^2).
+    dof_node, dof_comp : (n,) int arrays
+        Node and component (0 = x, 1 = y) of each free DOF of K.
+    contact_nodes : (m, 2) int array
+        Node of body 1 and node of body 2 (-1 for a rigid foundation) of each contact pair.
+    contact_points, normals, tangents : (m, 2) float arrays
+        Coordinates, unit outer normal of body 1 and unit tangent t = (-n_y, n_x).
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    cell_body: np.ndarray
+    dof_node: np.ndarray
+    dof_comp: np.ndarray
+    contact_nodes: np.ndarray
+    contact_points: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+
+    def displacement_field(self, u: np.ndarray) -> np.ndarray:
+        """Nodal displacements (P, 2) from a free-DOF vector u (clamped nodes get 0)."""
+        U = np.zeros_like(self.points, dtype=float)
+        U[self.dof_node, self.dof_comp] = u
+        return U
+
+    def to_dict(self) -> dict:
+        return {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, d) -> "ContactGeometry":
+        return cls(**{f.name: np.asarray(d[f.name]) for f in dataclasses.fields(cls)})
+
+
+def default_rho(K: sp.spmatrix, N: sp.spmatrix, T: sp.spmatrix) -> float:
+    """Default augmentation parameter: the mean diagonal stiffness at the contact DOFs.
+
+    With rho of the size of a nodal stiffness, rho * (N u)_i is a force of the size
+    of lam_n,i, so the tests ``lam + rho * gap`` that define the inactive sets weigh
+    both alike (the seed's remark: forces ~1e10 while displacements are tiny).
+    """
+    B = sp.vstack([sp.csr_matrix(N), sp.csr_matrix(T)]).tocsc()
+    dofs = np.flatnonzero(np.diff(B.indptr) > 0)
+    diag = np.abs(sp.csr_matrix(K).diagonal())
+    vals = diag[dofs] if dofs.size else diag
+    rho = float(np.mean(vals)) if vals.size else 1.0
+    return rho if rho > 0 else 1.0
+
+
+@dataclass(eq=False)
+class ContactSystem:
+    """Discrete two-body (or body-foundation) frictional contact problem.
+
+    Attributes
+    ----------
+    K : PETSc.Mat   (n x n, AIJ, Dirichlet DOFs eliminated)
+    N, T : PETSc.Mat   (m x n, AIJ): relative normal / tangential displacement per contact node
+    f1, f2 : PETSc.Vec (n): the load path is f(alpha) = (1 - alpha) f1 + alpha f2
+    friction : float or (m,) array: Coulomb coefficient F >= 0 (one per node allowed)
+    rho : float > 0: augmentation parameter of (4)
+    geometry : ContactGeometry or None: mesh data of a FEM model (pictures, reading results)
+    info : dict: free-form description (model parameters, timings of assembly...)
+    """
+
+    K: PETSc.Mat
+    N: PETSc.Mat
+    T: PETSc.Mat
+    f1: PETSc.Vec
+    f2: PETSc.Vec
+    friction: object
+    rho: float
+    geometry: Optional[ContactGeometry] = None
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        n = self.K.getSize()[0]
+        m = self.N.getSize()[0]
+        if self.K.getSize() != (n, n):
+            raise InputError(f"K must be square, got shape {self.K.getSize()}")
+        for name in ("N", "T"):
+            shape = getattr(self, name).getSize()
+            if shape != (m, n):
+                raise InputError(f"{name} must have shape (m, n) = ({m}, {n}), got {shape}")
+        for name in ("f1", "f2"):
+            size = getattr(self, name).getSize()
+            if size != n:
+                raise InputError(f"load vector {name} has length {size}, expected n = {n} (the size of K)")
+        self.friction = _check_friction(self.friction, m)
+        if not (np.isfinite(self.rho) and self.rho > 0):
+            raise InputError(f"rho must be a finite positive number, got {self.rho!r}")
+        self.rho = float(self.rho)
+        self._cache = {}
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def comm(self):
+        """The mpi4py communicator of the PETSc objects."""
+        return self.K.getComm().tompi4py()
+
+    @property
+    def n(self) -> int:
+        """Number of displacement DOFs (free DOFs of K)."""
+        return self.K.getSize()[0]
+
+    @property
+    def m(self) -> int:
+        """Number of contact nodes."""
+        return self.N.getSize()[0]
+
+    @property
+    def friction_vector(self) -> np.ndarray:
+        """F as an (m,) array."""
+        return np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,)).copy()
+
+    def load(self, alpha: float) -> np.ndarray:
+        """f(alpha) = (1 - alpha) f1 + alpha f2 as a whole NumPy array (on every rank)."""
+        f1, f2 = self.loads_numpy()
+        return (1.0 - alpha) * f1 + alpha * f2
+
+    def loads_numpy(self):
+        """(f1, f2) as whole NumPy arrays, cached."""
+        if "loads" not in self._cache:
+            self._cache["loads"] = (linalg.gather_vec(self.f1), linalg.gather_vec(self.f2))
+        return self._cache["loads"]
+
+    def contact_maps(self):
+        """(N, T) as whole SciPy CSR matrices on every rank, cached."""
+        if "NT" not in self._cache:
+            self._cache["NT"] = (linalg.gather_mat(self.N), linalg.gather_mat(self.T))
+        return self._cache["NT"]
+
+    def to_scipy(self):
+        """(K, N, T, f1, f2): SciPy CSR matrices and NumPy vectors, whole on every rank."""
+        N, T = self.contact_maps()
+        f1, f2 = self.loads_numpy()
+        return linalg.gather_mat(self.K), N.copy(), T.copy(), f1.copy(), f2.copy()
+
+    # ------------------------------------------------------------ variations
+    def with_friction(self, friction) -> "ContactSystem":
+        """The same system (sharing K, N, T, loads) with another friction coefficient."""
+        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry, dict(self.info))
+
+    def with_loads(self, f1, f2) -> "ContactSystem":
+        """The same system with other load vectors (NumPy arrays of length n or PETSc Vecs)."""
+        vecs = []
+        ranges = np.asarray(self.K.getOwnershipRanges())
+        for name, f in (("f1", f1), ("f2", f2)):
+            if isinstance(f, PETSc.Vec):
+                vecs.append(f)
+            else:
+                f = np.asarray(f, dtype=float)
+                if f.shape != (self.n,):
+                    raise InputError(f"load vector {name} has shape {f.shape}, expected ({self.n},)")
+                vecs.append(linalg.vec_from_numpy(f, self.comm, ranges))
+        return ContactSystem(self.K, self.N, self.T, vecs[0], vecs[1], self.friction, self.rho, self.geometry, dict(self.info))
+
+    # ----------------------------------------------------------- constructors
+    @classmethod
+    def from_arrays(cls, K, N, T, f1, f2, friction, rho=None, comm=None, geometry=None) -> "ContactSystem":
+        """Build a system from NumPy/SciPy data given whole on every rank.
+
+        Parameters
+        ----------
+        K : (n, n) SPD matrix (dense or sparse); N, T : (m, n); f1, f2 : (n,)
+        friction : F >= 0 (scalar or one per contact node)
+        rho : augmentation parameter; default :func:`default_rho`
+        comm : mpi4py communicator (default COMM_WORLD)
+        """
+        comm = MPI.COMM_WORLD if comm is None else comm
+        K = _as_csr("K", K)
+        N = _as_csr("N", N)
+        T = _as_csr("T", T)
+        n = K.shape[0]
+        if K.shape != (n, n):
+            raise InputError(f"K must be square, got shape {K.shape}")
+        m = N.shape[0]
+        for name, A in (("N", N), ("T", T)):
+            if A.shape != (m, n):
+                raise InputError(f"{name} must have shape (m, n) = ({m}, {n}) to match K and N, got {A.shape}")
+        loads = []
+        for name, f in (("f1", f1), ("f2", f2)):
+            f = np.asarray(f, dtype=float).ravel() if np.ndim(f) <= 2 else np.asarray(f)
+            if f.shape != (n,):
+                raise InputError(f"load vector {name} has length {f.size}, expected n = {n} (the size of K)")
+            if not np.all(np.isfinite(f)):
+                raise InputError(f"load vector {name} has non-finite entries")
+            loads.append(f)
+        asym = abs(K - K.T).max() if K.nnz else 0.0
+        if asym > 1e-10 * max(abs(K).max(), 1e-300):
+            raise InputError(f"K must be symmetric; max |K - K^T| = {asym:.3e}")
+        empty = np.flatnonzero((np.diff(N.indptr) == 0) & (np.diff(T.indptr) == 0))
+        if empty.size:
+            raise InputError(f"contact nodes {empty.tolist()} have zero rows in both N and T (fully clamped?)")
+        _check_friction(friction, m)
+        if rho is None:
+            rho = default_rho(K, N, T)
+        ranges = linalg.ownership(n, comm)
+        return cls(
+            K=linalg.mat_from_scipy(K, comm, ranges, ranges),
+            N=linalg.mat_from_scipy(N, comm, None, ranges),
+            T=linalg.mat_from_scipy(T, comm, None, ranges),
+            f1=linalg.vec_from_numpy(loads[0], comm, ranges),
+            f2=linalg.vec_from_numpy(loads[1], comm, ranges),
+            friction=friction,
+            rho=rho,
+            geometry=geometry,
+        )
+
+    def __repr__(self):
+        return f"ContactSystem(n={self.n}, m={self.m}, friction={self.friction!r}, rho={self.rho:.4g})"
+
+
+def _as_csr(name, A):
+    try:
+        if sp.issparse(A):
+            A = sp.csr_matrix(A, dtype=float)
+        else:
+            arr = np.asarray(A, dtype=float)
+            if arr.ndim == 1:
+                arr = arr[None, :]
+            if arr.ndim != 2:
+                raise InputError(f"{name} must be a 2-D matrix, got an array of shape {arr.shape}")
+            A = sp.csr_matrix(arr)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{name} is not a numeric matrix: {exc}") from exc
+    if A.nnz and not np.all(np.isfinite(A.data)):
+        raise InputError(f"{name} has non-finite entries")
+    return A
+
+
+def _check_friction(friction, m):
+    arr = np.asarray(friction, dtype=float)
+    if arr.ndim == 0:
+        if not np.isfinite(arr) or arr < 0:
+            raise InputError(f"friction coefficient F must be a finite number >= 0, got {float(arr)!r}")
+        return float(arr)
+    if arr.shape != (m,):
+        raise InputError(f"friction must be a scalar or one value per contact node (shape ({m},)), got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr) | (arr < 0))
+    if bad.size:
+        raise InputError(f"friction coefficients must be finite and >= 0; nodes {bad.tolist()} have {arr[bad].tolist()}")
+    return arr.copy()
