@@ -1,0 +1,56 @@
+"""cfcontact: path following for 2D static contact with Coulomb friction (FEniCSx + PETSc).
+
+Importing cfcontact never imports dolfinx: the FEM layer (:func:`two_blocks`,
+:func:`assemble_contact_system`) is loaded when first used.
+"""
+
+from cfcontact.errors import (
+    CfcontactError,
+    ConvergenceError,
+    EnumerationTooLarge,
+    GeometryError,
+    InputError,
+    PathError,
+    SingularSystemError,
+)
+from cfcontact.ssnm import (
+    DirNeuSolver,
+    InactiveSets,
+    Solution,
+    SolverOptions,
+    dirneu,
+    get_solver,
+    inactive_sets,
+    is_fixed_point,
+    ssnm,
+    verify,
+)
+from cfcontact.system import ContactGeometry, ContactSystem
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "two_blocks": ("cfcontact.models", "two_blocks"),
+    "assemble_contact_system": ("cfcontact.assembly", "assemble_contact_system"),
+    "trace_path": ("cfcontact.path", "trace_path"),
+    "SolutionPath": ("cfcontact.path", "SolutionPath"),
+    "PathOptions": ("cfcontact.path", "PathOptions"),
+    "enumerate_solutions": ("cfcontact.enumerate", "enumerate_solutions"),
+    "one_node": ("cfcontact.lumped", "one_node"),
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'cfcontact' has no attribute {name!r}")
+
+
+__all__ = [
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError", "PathError",
+    "SingularSystemError", "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver",
+    "inactive_sets", "is_fixed_point", "ssnm", "verify", "ContactGeometry", "ContactSystem", *_LAZY,
+]

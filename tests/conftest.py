@@ -1,0 +1,33 @@
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def mpirun_cmd(nprocs, *args):
+    """Command list running ``python args`` under mpirun with ``nprocs`` ranks."""
+    mpirun = shutil.which("mpirun") or shutil.which("mpiexec")
+    if mpirun is None:
+        pytest.fail("mpirun not found: the install script installs openmpi-bin")
+    cmd = [mpirun, "-n", str(nprocs)]
+    if os.geteuid() == 0:
+        cmd.append("--allow-run-as-root")
+    cmd += ["--oversubscribe"]
+    return cmd + [sys.executable, *args]
+
+
+@pytest.fixture
+def run_mpi():
+    def run(nprocs, *args, timeout=600):
+        env = dict(os.environ)
+        env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+        env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        proc = subprocess.run(mpirun_cmd(nprocs, *args), capture_output=True, text=True, env=env, timeout=timeout, cwd=ROOT)
+        if proc.returncode != 0:
+            raise AssertionError(f"mpirun failed ({proc.returncode}):\nSTDOUT:\n{proc.stdout}\nSTDERR:\n{proc.stderr}")
+        return proc
+    return run
