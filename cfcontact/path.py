@@ -1,0 +1,652 @@
+"""Path following along f(alpha) = (1 - alpha) f1 + alpha f2 (the seed's Section 4).
+
+The solution path is a chain of oriented linear branches (inactive sets Z fixed,
+orientation s = +-1) joined at transition points.  :func:`trace_path` follows it with
+
+* ``method="seed"``: the seed's predictor-corrector on each branch with adaptive step
+  (h_min, h_max, c_p, c_s), the branching indicator (17)-(18) and the branching
+  algorithm (transversal transition vs fold);
+* ``method="exact"``: the exact piecewise-affine continuation of :mod:`cfcontact.exact`.
+
+Both return a :class:`SolutionPath`.  Along a branch y(alpha) = (1 - alpha) Y1 + alpha Y2
+with Y1 = DirNeu(Z, f1), Y2 = DirNeu(Z, f2) exactly, so every branch stores (Y1, Y2) and
+:meth:`SolutionPath.solutions_at` evaluates branches exactly (no interpolation between
+stored points), also after :meth:`SolutionPath.load`.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from cfcontact.errors import InputError, PathError
+from cfcontact.ssnm import (
+    InactiveSets,
+    Solution,
+    get_solver,
+    indicators,
+    inactive_sets,
+    is_fixed_point,
+    ssnm,
+)
+from cfcontact.system import ContactGeometry, ContactSystem
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
+
+
+@dataclass
+class PathOptions:
+    """Options of the path-following layer (seed defaults, its Figure 6).
+
+    h_min, h_max, c_p, c_s: step-size range and prolongation / shortening rates.
+    h0: initial step.  max_steps, max_transitions: caps (the run stops with that status).
+    alpha_min, alpha_max: the path stops when alpha leaves [alpha_min, alpha_max]
+        (default: the interval between alpha_start and alpha_end).
+    tol, max_iter: SSNM options for the start point.
+    callback: called with each accepted :class:`PathPoint`; a truthy return stops the run.
+    """
+
+    h_min: float = 1e-5
+    h_max: float = 5.0
+    c_p: float = 1.3
+    c_s: float = 0.5
+    h0: float = 1e-2
+    max_steps: int = 200000
+    max_transitions: int = 10000
+    alpha_min: Optional[float] = None
+    alpha_max: Optional[float] = None
+    tol: float = 1e-9
+    max_iter: int = 100
+    callback: Optional[Callable] = None
+
+    def validate(self):
+        bad = []
+        if not (0 < self.h_min <= self.h_max):
+            bad.append(f"need 0 < h_min <= h_max, got h_min={self.h_min}, h_max={self.h_max}")
+        if not (self.c_p > 1):
+            bad.append(f"need c_p > 1, got {self.c_p}")
+        if not (0 < self.c_s < 1):
+            bad.append(f"need 0 < c_s < 1, got {self.c_s}")
+        if not (self.h0 > 0):
+            bad.append(f"need h0 > 0, got {self.h0}")
+        if int(self.max_steps) < 1 or int(self.max_transitions) < 0:
+            bad.append(f"need max_steps >= 1 and max_transitions >= 0, got {self.max_steps}, {self.max_transitions}")
+        if bad:
+            raise InputError("invalid path options: " + "; ".join(bad))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("callback")
+        return d
+
+
+@dataclass
+class PathPoint:
+    """An accepted point of the path (what the callback sees)."""
+
+    index: int
+    alpha: float
+    branch: int
+    solution: Solution
+
+
+@dataclass
+class Branch:
+    """An oriented linear branch: inactive sets, orientation and the points the path took on it.
+
+    alpha_enter / alpha_exit: where the path entered and left the branch (estimates at
+    transitions for the seed method, exact for the exact method).
+    origin: index of the transition that started it (None for the first branch).
+    """
+
+    index: int
+    sets: InactiveSets
+    orientation: int
+    points: list = field(default_factory=list)
+    alpha_enter: float = float("nan")
+    alpha_exit: float = float("nan")
+    origin: Optional[int] = None
+    parent: Optional[int] = None
+
+    def to_dict(self) -> dict:
+        return {"index": self.index, "sets": self.sets.to_dict(), "states": self.sets.states(),
+                "orientation": self.orientation, "points": list(map(int, self.points)),
+                "alpha_enter": self.alpha_enter, "alpha_exit": self.alpha_exit,
+                "origin": self.origin, "parent": self.parent}
+
+    @classmethod
+    def from_dict(cls, d) -> "Branch":
+        return cls(index=d["index"], sets=InactiveSets.from_dict(d["sets"]), orientation=d["orientation"],
+                   points=list(d["points"]), alpha_enter=d["alpha_enter"], alpha_exit=d["alpha_exit"],
+                   origin=d["origin"], parent=d.get("parent"))
+
+
+@dataclass
+class Transition:
+    """A transition point between two branches.
+
+    kind: "transversal" (alpha keeps its direction) or "fold" (alpha turns back).
+    node, set: the contact node and the set ("nu": A_nu <-> I_nu, "tp": A_t <-> I_t^+,
+        "tm": A_t <-> I_t^-) that changed; ``changes`` lists all of them when several did.
+    alpha: the transition parameter (seed: last point before it, within the bracket;
+        exact: the root of the indicator).  bracket: (lo, hi) known to contain it.
+    """
+
+    index: int
+    alpha: float
+    kind: str
+    node: int
+    set: str
+    from_branch: int
+    to_branch: int
+    bracket: tuple = (float("nan"), float("nan"))
+    changes: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["bracket"] = list(self.bracket)
+        return d
+
+    @classmethod
+    def from_dict(cls, d) -> "Transition":
+        d = dict(d)
+        d["bracket"] = tuple(d["bracket"])
+        return cls(**d)
+
+
+@dataclass
+class PathEvent:
+    """Something the run could not handle normally (reported, never silent)."""
+
+    kind: str
+    alpha: float
+    message: str
+    branch: Optional[int] = None
+    data: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class SolutionPath:
+    """The traced solution path: points, branches, transitions, and exact branch evaluation."""
+
+    def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
+                 geometry: Optional[ContactGeometry] = None):
+        self.n, self.m = int(n), int(m)
+        self.N, self.T = sp.csr_matrix(N), sp.csr_matrix(T)
+        self.friction = friction
+        self.rho = float(rho)
+        self.method = method
+        self.alpha_start, self.alpha_end = float(alpha_start), float(alpha_end)
+        self.options = options or {}
+        self.geometry = geometry
+        self._alphas: list = []
+        self._ys: list = []
+        self._point_branch: list = []
+        self.branches: list = []
+        self.transitions: list = []
+        self.events: list = []
+        self.status = "running"
+        self.stats: dict = {}
+        self._Y: dict = {}  # branch index -> (Y1, Y2)
+
+    # ------------------------------------------------------------- building
+    @classmethod
+    def for_system(cls, system: ContactSystem, method, alpha_start, alpha_end, options=None):
+        N, T = system.contact_maps()
+        return cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
+                   options, system.geometry)
+
+    def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan")):
+        b = Branch(len(self.branches), sets, int(orientation), origin=origin, parent=parent, alpha_enter=alpha_enter)
+        self.branches.append(b)
+        self._Y[b.index] = (np.asarray(Y1, dtype=float), np.asarray(Y2, dtype=float))
+        return b
+
+    def add_point(self, branch: Branch, alpha, y) -> int:
+        self._alphas.append(float(alpha))
+        self._ys.append(np.asarray(y, dtype=float))
+        self._point_branch.append(branch.index)
+        idx = len(self._alphas) - 1
+        branch.points.append(idx)
+        return idx
+
+    # ------------------------------------------------------------- accessors
+    @property
+    def alphas(self) -> np.ndarray:
+        """alpha of every stored point, in path order."""
+        return np.asarray(self._alphas, dtype=float)
+
+    @property
+    def ys(self) -> np.ndarray:
+        """y = (u, lam_n, lam_t) of every stored point, (P, n + 2m)."""
+        return np.asarray(self._ys, dtype=float).reshape(len(self._ys), self.n + 2 * self.m)
+
+    @property
+    def point_branch(self) -> np.ndarray:
+        return np.asarray(self._point_branch, dtype=int)
+
+    @property
+    def points(self):
+        """[(alpha, y)] in path order."""
+        return list(zip(self._alphas, self._ys))
+
+    @property
+    def folds(self) -> list:
+        return [t for t in self.transitions if t.kind == "fold"]
+
+    def branch_y(self, branch, alpha) -> np.ndarray:
+        """y on a branch at alpha, exactly: (1 - alpha) Y1 + alpha Y2."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        Y1, Y2 = self._Y[b]
+        return (1.0 - alpha) * Y1 + alpha * Y2
+
+    def _indicators(self, y):
+        n, m = self.n, self.m
+        u, ln, lt = y[:n], y[n:n + m], y[n + m:]
+        F = np.broadcast_to(np.asarray(self.friction, dtype=float), (m,))
+        a = ln + self.rho * (self.N @ u)
+        b = lt + self.rho * (self.T @ u)
+        return a, b - F * ln, b + F * ln
+
+    def _consistent(self, y, sets, slack=1e-9):
+        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative)."""
+        a, bp, bm = self._indicators(y)
+        scale = max(np.abs(a).max(initial=0), np.abs(bp).max(initial=0), np.abs(bm).max(initial=0), 1e-300)
+        tol = slack * scale
+        F = np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,))
+        free = sets.nu | (F == 0.0)
+        ok_nu = np.where(sets.nu, a < tol, a > -tol)
+        ok_tp = np.where(sets.tp, bp > -tol, bp < tol)
+        ok_tm = np.where(sets.tm, bm < tol, bm > -tol)
+        # open nodes / F = 0: only "tangentially free or stuck" matters
+        it = sets.tp | sets.tm
+        ok_free = np.where(it, (bp > -tol) | (bm < tol), (bp < tol) & (bm > -tol))
+        ok_t = np.where(free, ok_free, ok_tp & ok_tm)
+        return bool(np.all(ok_nu & ok_t))
+
+    def branch_extent(self, branch) -> tuple:
+        """(lo, hi) of alpha covered by the path on this branch (transition to transition)."""
+        b = self.branches[branch] if not isinstance(branch, Branch) else branch
+        vals = [self._alphas[i] for i in b.points]
+        for a in (b.alpha_enter, b.alpha_exit):
+            if np.isfinite(a):
+                vals.append(a)
+        return (min(vals), max(vals)) if vals else (np.nan, np.nan)
+
+    def solutions_at(self, alpha: float, rtol: float = 1e-9) -> list:
+        """Every distinct solution the path has at ``alpha``, evaluated exactly on each branch crossing it.
+
+        Returns a list of :class:`Solution` sorted by branch order.
+        """
+        alpha = float(alpha)
+        out, ys = [], []
+        for b in self.branches:
+            lo, hi = self.branch_extent(b)
+            if not (lo <= alpha <= hi):
+                continue
+            y = self.branch_y(b, alpha)
+            if not self._consistent(y, b.sets):
+                continue
+            scale = max(np.abs(y).max(), 1e-300)
+            if any(np.abs(y - z).max() <= rtol * max(scale, np.abs(z).max()) for z in ys):
+                continue
+            ys.append(y)
+            n, m = self.n, self.m
+            out.append(Solution(y[:n].copy(), y[n:n + m].copy(), y[n + m:].copy(), alpha, b.sets, 0))
+        return out
+
+    def multiplicity(self, alpha: float) -> int:
+        """Number of distinct solutions of the path at alpha."""
+        return len(self.solutions_at(alpha))
+
+    def max_multiplicity(self, samples: int = 0):
+        """(max multiplicity, an alpha where it occurs), checked at the midpoints between all branch ends."""
+        ends = sorted({e for b in self.branches for e in self.branch_extent(b) if np.isfinite(e)})
+        cands = [0.5 * (a + b) for a, b in zip(ends[:-1], ends[1:]) if b > a]
+        if samples:
+            cands += list(np.linspace(min(ends), max(ends), samples))
+        best = (0, float("nan"))
+        for a in cands:
+            k = self.multiplicity(a)
+            if k > best[0]:
+                best = (k, a)
+        return best
+
+    def component(self, spec) -> np.ndarray:
+        """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y."""
+        return self.ys[:, self.component_index(spec)]
+
+    def component_index(self, spec) -> int:
+        n, m = self.n, self.m
+        if isinstance(spec, (int, np.integer)):
+            idx = int(spec)
+            limit = n + 2 * m
+        else:
+            name, i = spec
+            offsets = {"u": (0, n), "lam_n": (n, m), "lam_t": (n + m, m)}
+            if name not in offsets:
+                raise InputError(f"unknown component {name!r}; valid: 'u', 'lam_n', 'lam_t' or an index of y")
+            off, limit = offsets[name]
+            if not (0 <= int(i) < limit):
+                raise InputError(f"component index {i} out of range for {name!r} (0..{limit - 1})")
+            return off + int(i)
+        if not (0 <= idx < limit):
+            raise InputError(f"component index {idx} out of range (0..{limit - 1})")
+        return idx
+
+    def summary(self) -> dict:
+        mult, at = self.max_multiplicity()
+        return {"method": self.method, "status": self.status, "points": len(self._alphas),
+                "branches": len(self.branches), "transitions": len(self.transitions),
+                "transversal": sum(t.kind == "transversal" for t in self.transitions),
+                "folds": len(self.folds), "max_multiplicity": mult, "alpha_of_max": at,
+                "events": len(self.events), **self.stats}
+
+    def __repr__(self):
+        return (f"SolutionPath(method={self.method!r}, status={self.status!r}, points={len(self._alphas)}, "
+                f"branches={len(self.branches)}, transitions={len(self.transitions)}, folds={len(self.folds)})")
+
+    # ------------------------------------------------------------ save / load
+    def save(self, path) -> str:
+        """Write the path to a directory ``path`` (created; replaced atomically if it exists).
+
+        Format (version 1): ``path.json`` holds the structure (method, options, status, stats,
+        branches with sets and orientation, transitions, events); ``fields.npz`` holds the
+        arrays (alphas, ys, point_branch, per-branch Y1/Y2, N and T in CSR form, friction,
+        geometry of a FEM model).
+        """
+        path = os.fspath(path)
+        parent = os.path.dirname(os.path.abspath(path))
+        os.makedirs(parent, exist_ok=True)
+        tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
+        try:
+            meta = {"format": "cfcontact-path", "version": FORMAT_VERSION, "n": self.n, "m": self.m,
+                    "rho": self.rho, "method": self.method, "alpha_start": self.alpha_start,
+                    "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
+                    "stats": self.stats, "branches": [b.to_dict() for b in self.branches],
+                    "transitions": [t.to_dict() for t in self.transitions],
+                    "events": [e.to_dict() for e in self.events], "has_geometry": self.geometry is not None}
+            with open(os.path.join(tmp, "path.json"), "w") as fh:
+                json.dump(meta, fh, indent=1, default=_json_default)
+            arrays = {"alphas": self.alphas, "ys": self.ys, "point_branch": self.point_branch,
+                      "friction": np.asarray(self.friction, dtype=float),
+                      "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
+                      "T_data": self.T.data, "T_indices": self.T.indices, "T_indptr": self.T.indptr}
+            if self.branches:
+                arrays["Y1"] = np.stack([self._Y[b.index][0] for b in self.branches])
+                arrays["Y2"] = np.stack([self._Y[b.index][1] for b in self.branches])
+            if self.geometry is not None:
+                arrays.update({"geometry_" + k: v for k, v in self.geometry.to_dict().items()})
+            np.savez_compressed(os.path.join(tmp, "fields.npz"), **arrays)
+            if os.path.isdir(path):
+                old = path + ".old-" + os.path.basename(tmp)
+                os.rename(path, old)
+                os.rename(tmp, path)
+                shutil.rmtree(old)
+            else:
+                os.rename(tmp, path)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path) -> "SolutionPath":
+        """Read a path written by :meth:`save`."""
+        path = os.fspath(path)
+        jpath = os.path.join(path, "path.json")
+        if not os.path.isfile(jpath):
+            raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
+        with open(jpath) as fh:
+            meta = json.load(fh)
+        if meta.get("format") != "cfcontact-path" or meta.get("version") != FORMAT_VERSION:
+            raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
+        with np.load(os.path.join(path, "fields.npz")) as z:
+            arrays = {k: z[k] for k in z.files}
+        n, m = meta["n"], meta["m"]
+        N = sp.csr_matrix((arrays["N_data"], arrays["N_indices"], arrays["N_indptr"]), shape=(m, n))
+        T = sp.csr_matrix((arrays["T_data"], arrays["T_indices"], arrays["T_indptr"]), shape=(m, n))
+        fr = arrays["friction"]
+        friction = float(fr) if fr.ndim == 0 else fr
+        geometry = None
+        if meta.get("has_geometry"):
+            geometry = ContactGeometry.from_dict({k[len("geometry_"):]: v for k, v in arrays.items()
+                                                  if k.startswith("geometry_")})
+        p = cls(n, m, N, T, friction, meta["rho"], meta["method"], meta["alpha_start"], meta["alpha_end"],
+                meta["options"], geometry)
+        p._alphas = [float(a) for a in arrays["alphas"]]
+        ys = arrays["ys"]
+        p._ys = [ys[i] for i in range(ys.shape[0])]
+        p._point_branch = [int(b) for b in arrays["point_branch"]]
+        p.branches = [Branch.from_dict(d) for d in meta["branches"]]
+        for b in p.branches:
+            p._Y[b.index] = (arrays["Y1"][b.index], arrays["Y2"][b.index])
+        p.transitions = [Transition.from_dict(d) for d in meta["transitions"]]
+        p.events = [PathEvent(**d) for d in meta["events"]]
+        p.status = meta["status"]
+        p.stats = meta["stats"]
+        return p
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serializable: {type(o)}")
+
+
+# ====================================================================== tracing
+def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, method: str = "seed",
+               y0=None, options: Optional[PathOptions] = None, solver=None, **kwargs) -> SolutionPath:
+    """Follow the solution path of (4) along f(alpha) from alpha_start towards alpha_end.
+
+    Parameters
+    ----------
+    method : "seed" (the seed's Section 4) or "exact" (exact piecewise-affine continuation)
+    y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
+    options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``)
+    """
+    if method not in ("seed", "exact"):
+        raise InputError(f"unknown method {method!r}; valid: 'seed', 'exact'")
+    if not (np.isfinite(alpha_start) and np.isfinite(alpha_end)) or alpha_start == alpha_end:
+        raise InputError(f"alpha range is empty: alpha_start={alpha_start}, alpha_end={alpha_end} "
+                         f"(need two different finite numbers)")
+    opts = options or PathOptions()
+    if kwargs:
+        valid = set(PathOptions.__dataclass_fields__)
+        unknown = sorted(set(kwargs) - valid)
+        if unknown:
+            raise InputError(f"unknown path option(s) {unknown}; valid: {sorted(valid)}")
+        opts = PathOptions(**{**asdict(PathOptions()), **{k: getattr(opts, k) for k in valid}, **kwargs})
+    opts.validate()
+    if method == "exact":
+        from cfcontact.exact import trace_exact
+
+        return trace_exact(system, alpha_start, alpha_end, y0=y0, options=opts, solver=solver)
+    return _trace_seed(system, alpha_start, alpha_end, y0, opts, solver)
+
+
+def _alpha_range(opts, alpha_start, alpha_end):
+    lo = min(alpha_start, alpha_end) if opts.alpha_min is None else opts.alpha_min
+    hi = max(alpha_start, alpha_end) if opts.alpha_max is None else opts.alpha_max
+    if not lo < hi:
+        raise InputError(f"alpha range is empty: [alpha_min, alpha_max] = [{lo}, {hi}]")
+    if not (lo <= alpha_start <= hi):
+        raise InputError(f"alpha_start={alpha_start} lies outside [alpha_min, alpha_max] = [{lo}, {hi}]")
+    return lo, hi
+
+
+def start_point(system, alpha, y0, opts, solver) -> Solution:
+    """SSNM at alpha from y0; without y0, from 0 and, should that fail (SSNM is only locally
+    convergent), from the frictionless solution (a convex problem where SSNM is robust)."""
+    from cfcontact.errors import ConvergenceError
+
+    try:
+        return ssnm(system, alpha, y0=y0, tol=opts.tol, max_iter=opts.max_iter, solver=solver)
+    except ConvergenceError as first:
+        if y0 is not None:
+            raise
+        log.info("SSNM from 0 failed at alpha=%g; restarting from the frictionless solution", alpha)
+        frictionless = system.with_friction(0.0)
+        try:
+            guess = ssnm(frictionless, alpha, tol=opts.tol, max_iter=opts.max_iter)
+            return ssnm(system, alpha, y0=guess.y, tol=opts.tol, max_iter=opts.max_iter, solver=solver)
+        except ConvergenceError:
+            raise first
+
+
+def branch_endpoints(system, solver, sets):
+    """(Y1, Y2) = (DirNeu(Z, f1), DirNeu(Z, f2)): y(alpha) = (1 - alpha) Y1 + alpha Y2 on the branch."""
+    f1, f2 = system.loads_numpy()
+    return solver.solve(sets, f1), solver.solve(sets, f2)
+
+
+def _select_toggle(system, y, sets):
+    """The seed's branching indicator (17)-(18): the smallest |indicator| whose toggle changes Z.
+
+    Toggles that cannot change DirNeu's solution (the tangential set of an open node, or of a
+    node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns (value, node, kind, Z_new).
+    """
+    a, bp, bm = indicators(system, y)
+    best = None
+    for kind, vals in (("nu", a), ("tp", bp), ("tm", bm)):
+        for i in np.argsort(np.abs(vals), kind="stable"):
+            new = toggle(sets, int(i), kind)
+            if new.equivalent(sets, system.friction):
+                continue
+            if best is None or abs(vals[i]) < best[0]:
+                best = (float(abs(vals[i])), int(i), kind, new)
+            break
+    return best
+
+
+def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:
+    """Move node i between the active and inactive set named by kind (rule (18))."""
+    nu, tp, tm = sets.nu.copy(), sets.tp.copy(), sets.tm.copy()
+    if kind == "nu":
+        nu[i] = not nu[i]
+    elif kind == "tp":
+        tp[i] = not tp[i]
+    elif kind == "tm":
+        tm[i] = not tm[i]
+    else:
+        raise ValueError(kind)
+    return InactiveSets(nu, tp, tm)
+
+
+def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=None) -> SolutionPath:
+    solver = solver or get_solver(system)
+    t0 = time.perf_counter()
+    stats0 = solver.stats.as_dict()
+    lo, hi = _alpha_range(opts, alpha_start, alpha_end)
+    s = 1 if alpha_end > alpha_start else -1
+    path = SolutionPath.for_system(system, "seed", alpha_start, alpha_end, opts.to_dict())
+    start = start_point(system, alpha_start, y0, opts, solver)
+    Z, alpha, y = start.sets, float(alpha_start), start.y
+    branch = path.add_branch(Z, s, *branch_endpoints(system, solver, Z), alpha_enter=alpha)
+    path.add_point(branch, alpha, y)
+    h = opts.h0
+    steps = 0
+    last_seen = {}
+    f1, f2 = system.loads_numpy()
+
+    def finish(status):
+        branch.alpha_exit = alpha
+        path.status = status
+        st = solver.stats.as_dict()
+        path.stats = {k: st[k] - stats0[k] for k in st}
+        path.stats["wall_time"] = time.perf_counter() - t0
+        log.info("seed path: %s", path)
+        return path
+
+    def emit(point_index):
+        if opts.callback is not None:
+            sol = Solution.from_y(system, path._ys[point_index], path._alphas[point_index], sets=Z)
+            if opts.callback(PathPoint(point_index, path._alphas[point_index], branch.index, sol)):
+                return True
+        return False
+
+    if emit(0):
+        return finish("stopped by callback")
+    while True:
+        steps += 1
+        if steps > opts.max_steps:
+            path.events.append(PathEvent("max_steps", alpha, f"step cap {opts.max_steps} reached", branch.index))
+            return finish("max_steps")
+        a_new = alpha + s * h
+        clipped = False
+        if a_new >= hi or a_new <= lo:
+            a_new = min(max(a_new, lo), hi)
+            clipped = True
+        step = abs(a_new - alpha)
+        y_pred = solver.solve(Z, (1.0 - a_new) * f1 + a_new * f2) if step > 0 else y
+        if step > 0 and is_fixed_point(system, y_pred, Z):
+            alpha, y = a_new, y_pred
+            idx = path.add_point(branch, alpha, y)
+            h = min(opts.c_p * h, opts.h_max)
+            if emit(idx):
+                return finish("stopped by callback")
+            if clipped:
+                return finish("completed")
+            continue
+        if h > opts.h_min and step > 0:
+            h = max(opts.c_s * h, opts.h_min)
+            continue
+        # ---- branching algorithm at the last point (alpha, y) of the branch
+        h_fail = step if step > 0 else h
+        if len(path.transitions) >= opts.max_transitions:
+            path.events.append(PathEvent("max_transitions", alpha, f"transition cap {opts.max_transitions} reached",
+                                         branch.index))
+            return finish("max_transitions")
+        choice = _select_toggle(system, y, Z)
+        if choice is None:
+            path.events.append(PathEvent("no_indicator", alpha, "no set change available at the branch end",
+                                         branch.index))
+            return finish("stuck")
+        _, node, kind, Z_new = choice
+        a1 = alpha + s * h_fail
+        y1 = solver.solve(Z_new, (1.0 - a1) * f1 + a1 * f2)
+        if is_fixed_point(system, y1, Z_new) and lo <= a1 <= hi:
+            tkind, s_new, a_next, y_next = "transversal", s, a1, y1
+        else:
+            a2 = alpha
+            y2 = solver.solve(Z_new, (1.0 - a2) * f1 + a2 * f2)
+            tkind, s_new, a_next, y_next = "fold", -s, a2, y2
+        key = (Z_new.canonical_key(system.friction), s_new, round(a_next / max(opts.h_min, 1e-300)))
+        last_seen[key] = last_seen.get(key, 0) + 1
+        if last_seen[key] > 2:
+            path.events.append(PathEvent("cycling", alpha, "the branching algorithm returns to the same branch at "
+                                         "the same alpha; the transition cannot be resolved by the seed's indicator",
+                                         branch.index, {"node": node, "set": kind}))
+            return finish("cycling")
+        branch.alpha_exit = alpha
+        tr = Transition(len(path.transitions), alpha, tkind, node, kind, branch.index, len(path.branches),
+                        bracket=(min(alpha, a1), max(alpha, a1)),
+                        changes=[{"node": node, "set": kind}])
+        path.transitions.append(tr)
+        log.info("alpha=%.8g %s transition: node %d set %s", alpha, tkind, node, kind)
+        branch = path.add_branch(Z_new, s_new, *branch_endpoints(system, solver, Z_new), origin=tr.index,
+                                 parent=branch.index, alpha_enter=alpha)
+        Z, s, alpha, y = Z_new, s_new, a_next, y_next
+        idx = path.add_point(branch, alpha, y)
+        if emit(idx):
+            return finish("stopped by callback")
+        if tkind == "transversal" and (alpha >= hi or alpha <= lo):
+            return finish("completed")

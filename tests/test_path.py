@@ -1,0 +1,142 @@
+"""Path following (seed method) against independent references."""
+
+import numpy as np
+import pytest
+
+import cfcontact
+from cfcontact.lumped import one_node, random_system
+from reference import one_node_solutions
+
+K1 = np.array([[1.0, 0.5], [0.5, 1.0]])
+
+
+def alpha_of_direction(system, theta):
+    """alpha at which f(alpha) points along theta (closed form, the one-node model)."""
+    f1, f2 = system.loads_numpy()
+    d = np.array([np.cos(theta), np.sin(theta)])
+    c1 = f1[0] * d[1] - f1[1] * d[0]
+    c2 = f2[0] * d[1] - f2[1] * d[0]
+    return c1 / (c1 - c2)
+
+
+@pytest.fixture(scope="module")
+def one_node_path():
+    system = one_node(2.5, K1)
+    return system, cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+
+
+def test_one_node_two_folds_at_wedge_rays(one_node_path):
+    system, path = one_node_path
+    assert path.status == "completed"
+    assert [t.kind for t in path.transitions] == ["fold", "fold"]
+    rays = sorted([alpha_of_direction(system, np.arctan(0.4)), alpha_of_direction(system, np.arctan(0.5))])
+    h_min = path.options["h_min"]
+    got = sorted(t.alpha for t in path.folds)
+    assert abs(got[0] - rays[0]) <= h_min and abs(got[1] - rays[1]) <= h_min
+    for t in path.folds:
+        assert t.bracket[0] - 1e-15 <= t.alpha <= t.bracket[1] + 1e-15
+
+
+def test_one_node_multiplicity_three_between_folds(one_node_path):
+    system, path = one_node_path
+    a_lo, a_hi = sorted(t.alpha for t in path.folds)
+    for a in np.linspace(a_lo + 1e-4, a_hi - 1e-4, 7):
+        sols = path.solutions_at(a)
+        assert len(sols) == 3
+        f = system.load(a)
+        ref = one_node_solutions(K1, 2.5, f)
+        assert sorted(s.states()[0] for s in sols) == sorted(name for name, _ in ref)
+        for sol in sols:
+            yref = dict(ref)[sol.states()[0]]
+            got = np.array([sol.u[0], sol.u[1], sol.lam_n[0], sol.lam_t[0]])
+            assert np.allclose(got, yref, atol=1e-12)
+    for a in (0.1, a_lo - 1e-3, a_hi + 1e-3, 0.95):
+        assert path.multiplicity(a) == 1
+
+
+def test_folds_are_turning_points(one_node_path):
+    _, path = one_node_path
+    for t in path.folds:
+        b_in, b_out = path.branches[t.from_branch], path.branches[t.to_branch]
+        assert b_in.orientation == -b_out.orientation
+        a_in = path.alphas[b_in.points]
+        a_out = path.alphas[b_out.points]
+        # alpha increases then decreases (or the reverse) across the fold
+        assert np.all(np.sign(np.diff(a_in)) == b_in.orientation)
+        assert np.all(np.sign(np.diff(a_out)) == b_out.orientation)
+
+
+def test_every_point_is_a_fixed_point_and_solves_the_problem(one_node_path):
+    system, path = one_node_path
+    for (alpha, y), b in zip(path.points, path.point_branch):
+        Z = path.branches[b].sets
+        assert cfcontact.is_fixed_point(system, y, Z)
+        assert cfcontact.ssnm(system, alpha, y0=y).iterations == 1
+        assert cfcontact.verify(system, y, alpha).ok(1e-10)
+
+
+def test_small_friction_single_valued():
+    system = random_system(3, 7, friction=0.05)
+    path = cfcontact.trace_path(system, 0.0, 1.0)
+    assert path.status == "completed"
+    assert all(t.kind == "transversal" for t in path.transitions)
+    assert np.all(np.diff(path.alphas) > 0)
+    for a in np.linspace(0.01, 0.99, 9):
+        assert path.multiplicity(a) == 1
+
+
+def test_random_systems_every_point_verifies():
+    for seed in range(4):
+        system = random_system(3, seed, friction=1.5)
+        path = cfcontact.trace_path(system, 0.0, 1.0, max_steps=20000)
+        assert path.status in ("completed",), (seed, path.status, path.events)
+        for (alpha, y) in path.points:
+            assert cfcontact.verify(system, y, alpha).ok(1e-9)
+
+
+def test_callback_stops_the_run():
+    system = one_node(2.5, K1)
+    seen = []
+
+    def cb(point):
+        seen.append(point.alpha)
+        return len(seen) >= 5
+
+    path = cfcontact.trace_path(system, 0.0, 1.0, callback=cb)
+    assert path.status == "stopped by callback"
+    assert len(path.alphas) == 5 == len(seen)
+
+
+def test_save_load_round_trip(tmp_path, one_node_path):
+    system, path = one_node_path
+    out = path.save(tmp_path / "run.cfpath")
+    back = cfcontact.SolutionPath.load(out)
+    assert back.status == path.status and back.method == "seed"
+    assert np.array_equal(back.alphas, path.alphas)
+    assert np.array_equal(back.ys, path.ys)
+    assert [t.to_dict() for t in back.transitions] == [t.to_dict() for t in path.transitions]
+    assert [b.sets for b in back.branches] == [b.sets for b in path.branches]
+    a = 0.45
+    s1 = path.solutions_at(a)
+    s2 = back.solutions_at(a)
+    assert len(s1) == len(s2) == 3
+    for x, y in zip(s1, s2):
+        assert np.array_equal(x.y, y.y)
+    # saving again over the same directory replaces it whole
+    path.save(tmp_path / "run.cfpath")
+    assert sorted(p.name for p in (tmp_path / "run.cfpath").iterdir()) == ["fields.npz", "path.json"]
+    assert [p.name for p in tmp_path.iterdir()] == ["run.cfpath"]
+
+
+def test_bad_options_and_ranges():
+    system = one_node(0.3)
+    with pytest.raises(cfcontact.InputError, match="alpha range is empty"):
+        cfcontact.trace_path(system, 0.5, 0.5)
+    with pytest.raises(cfcontact.InputError, match="unknown method 'newton'"):
+        cfcontact.trace_path(system, 0, 1, method="newton")
+    with pytest.raises(cfcontact.InputError, match="unknown path option"):
+        cfcontact.trace_path(system, 0, 1, hmin=3)
+    with pytest.raises(cfcontact.InputError, match="c_s"):
+        cfcontact.trace_path(system, 0, 1, c_s=2.0)
+    with pytest.raises(cfcontact.InputError, match="not a saved cfcontact path"):
+        cfcontact.SolutionPath.load("/nonexistent-dir")
