@@ -1,0 +1,685 @@
+"""FEM assembly: a tagged gmsh model + material + loads -> :class:`ContactSystem`.
+
+The only layer (with :mod:`cfcontact.compat`) that imports dolfinx and ufl.
+
+Pipeline (every step runs on all ranks of ``comm``; gmsh is used on rank 0 only):
+
+1. the gmsh model (or a ``.msh`` file) is read with its physical groups
+   (``dolfinx.io.gmshio.model_to_mesh``); the 2-D groups are bodies, the 1-D groups
+   boundary pieces (DESIGN.md: ``body1``=1, ``body2``=2, ``contact1``=10,
+   ``contact2``=20, anything else may be clamped or loaded);
+2. the linear-elasticity stiffness matrix K (plane strain or plane stress) of a
+   vector P1/Q1 space and the load vectors f1, f2 (surface tractions on tagged
+   boundary pieces, body forces) are assembled by dolfinx, in parallel;
+3. everything is renumbered to the project's rank-independent numbering: nodes in
+   the order of the gmsh node tags (compressed to ``0..P-1``), free DOFs ordered by
+   (node, component) after elimination of the Dirichlet DOFs of the clamped pieces
+   (both components of every node of a clamped piece are fixed to zero);
+4. the contact pairs are found by matching the nodes of ``contact1`` and
+   ``contact2`` by coordinates; the normal at a pair is the normalised average of
+   the outer normals of body 1 on its adjacent ``contact1`` facets, computed from
+   the geometry; ``t = (-n_y, n_x)``.  Pairs whose nodes are all clamped are
+   dropped; pairs are ordered along the interface.  Without ``body2`` /
+   ``contact2`` the contact is against a rigid foundation (N, T have body-1
+   entries only).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Mapping
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+
+import ufl
+
+from cfcontact import compat, linalg
+from cfcontact.errors import GeometryError, InputError
+from cfcontact.system import ContactGeometry, ContactSystem, default_rho
+
+BODY1, BODY2 = 1, 2
+CONTACT1, CONTACT2 = 10, 20
+
+#: VTK order of a dolfinx quadrilateral (tensor-product order -> counter-clockwise)
+_QUAD_TO_VTK = np.array([0, 1, 3, 2])
+
+__all__ = ["assemble_contact_system", "full_stiffness", "lame_parameters"]
+
+
+# ======================================================================= input
+def lame_parameters(E, nu, plane="strain"):
+    """Lamé parameters (lambda, mu) of the 2-D model (plane strain or plane stress)."""
+    try:
+        E = float(E)
+        nu = float(nu)
+    except (TypeError, ValueError):
+        raise InputError(f"E and nu must be numbers, got E={E!r}, nu={nu!r}") from None
+    if not (np.isfinite(E) and E > 0):
+        raise InputError(f"Young's modulus E must be a finite positive number, got {E!r}")
+    if not (np.isfinite(nu) and -1.0 < nu < 0.5):
+        raise InputError(f"Poisson's ratio nu must lie in (-1, 0.5), got {nu!r}")
+    lam = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+    mu = E / (2.0 * (1.0 + nu))
+    if plane == "strain":
+        return lam, mu
+    if plane == "stress":
+        return 2.0 * lam * mu / (lam + 2.0 * mu), mu
+    raise InputError(f"plane must be 'strain' or 'stress', got {plane!r}")
+
+
+def _vector2(value, what):
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a 2-vector (x, y) of numbers, got {value!r}") from None
+    if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be a finite 2-vector (x, y), got {value!r}")
+    return arr
+
+
+def _describe(groups, dim):
+    items = sorted((num, name) for (d, num), name in groups.items() if d == dim)
+    return ", ".join(f"{name}={num}" if name else str(num) for num, name in items) or "(none)"
+
+
+def _resolve_tag(spec, groups, dim, what):
+    """A physical group given by name or number -> its number; GeometryError listing valid ones."""
+    kind = "boundary piece (1-D physical group)" if dim == 1 else "body (2-D physical group)"
+    valid = f"valid {'1-D' if dim == 1 else '2-D'} physical groups: {_describe(groups, dim)}"
+    if isinstance(spec, (bool, np.bool_)):
+        raise GeometryError(f"unknown {kind} {spec!r} in {what}; {valid}")
+    if isinstance(spec, (int, np.integer)):
+        if (dim, int(spec)) in groups:
+            return int(spec)
+    elif isinstance(spec, str):
+        hits = [num for (d, num), name in groups.items() if d == dim and name == spec]
+        if len(hits) == 1:
+            return hits[0]
+        if len(hits) > 1:
+            raise GeometryError(f"{kind} name {spec!r} in {what} is ambiguous (numbers {sorted(hits)}); use a number")
+    raise GeometryError(f"unknown {kind} {spec!r} in {what}; {valid}")
+
+
+def _tag_label(groups, dim, num):
+    name = groups.get((dim, num), "")
+    return f"{name}={num}" if name else str(num)
+
+
+# ================================================================ gmsh reading
+def _physical_groups(model):
+    """{(dim, number): name} of the current gmsh model, plus an error text or None (rank 0)."""
+    groups = {}
+    for dim, num in model.getPhysicalGroups():
+        groups[(int(dim), int(num))] = model.getPhysicalName(dim, num)
+    if not groups:
+        return groups, "the gmsh model has no physical groups (DESIGN.md: body1=1, contact1=10, ...)"
+    if (2, BODY1) not in groups:
+        return groups, f"the gmsh model has no 2-D physical group {BODY1} (body1); 2-D groups: {_describe(groups, 2)}"
+    if (1, CONTACT1) not in groups:
+        return groups, f"the gmsh model has no 1-D physical group {CONTACT1} (contact1); 1-D groups: {_describe(groups, 1)}"
+    if ((2, BODY2) in groups) != ((1, CONTACT2) in groups):
+        return groups, ("body2 (2-D group 2) and contact2 (1-D group 20) must be given together "
+                        "(neither for a rigid foundation)")
+    etypes = set()
+    for dim, num in groups:
+        if dim != 2:
+            continue
+        for ent in model.getEntitiesForPhysicalGroup(dim, num):
+            types, tags, _ = model.mesh.getElements(dim, ent)
+            for t, tg in zip(types, tags):
+                if len(tg):
+                    etypes.add(int(t))
+    if not etypes:
+        return groups, "the gmsh model has no 2-D elements in its physical groups (call gmsh.model.mesh.generate(2))"
+    if not etypes <= {2, 3} or len(etypes) != 1:
+        return groups, ("only meshes of linear triangles or of linear quadrilaterals (one type) are supported; "
+                        f"gmsh element types found: {sorted(etypes)}")
+    tags, coords, _ = model.mesh.getNodes()
+    tags = np.asarray(tags)
+    if tags.size and not np.array_equal(np.sort(tags), np.arange(1, tags.size + 1)):
+        return groups, "gmsh node tags are not contiguous 1..N; call gmsh.model.mesh.renumberNodes() first"
+    z = np.asarray(coords).reshape(-1, 3)[:, 2]
+    if z.size and np.max(np.abs(z)) > 0:
+        return groups, "the mesh is not planar: nodes with z != 0 found (a 2-D model in the plane z = 0 is expected)"
+    return groups, None
+
+
+def _read_model(model_or_path, comm, root=0):
+    """(mesh, cell_tags, facet_tags, groups, source) from a gmsh model (rank 0) or a .msh path."""
+    import gmsh
+
+    is_path = isinstance(model_or_path, (str, os.PathLike))
+    source = os.fspath(model_or_path) if is_path else "gmsh model"
+
+    def _finish(model):
+        groups, err = (None, None)
+        if comm.rank == root:
+            try:
+                groups, err = _physical_groups(model)
+            except Exception as exc:  # gmsh errors (not initialised...)
+                groups, err = {}, f"cannot read the gmsh model: {exc}"
+        groups, err = comm.bcast((groups, err), root=root)
+        if err:
+            raise GeometryError(f"{source}: {err}")
+        mesh, ct, ft = compat.model_to_mesh(model if comm.rank == root else None, comm, root, gdim=2)
+        return mesh, ct, ft, groups
+
+    if not is_path:
+        model = gmsh.model if model_or_path is None else model_or_path
+        if comm.rank == root and not compat.gmsh_is_initialized():
+            comm.bcast(({}, "gmsh is not initialised: build the model first"), root=root)
+            raise GeometryError("gmsh model: gmsh is not initialised: build the model first")
+        mesh, ct, ft, groups = _finish(model)
+        return mesh, ct, ft, groups, source
+
+    if comm.rank == root:
+        with compat.gmsh_model("cfcontact-input") as model:
+            err = None
+            if not os.path.isfile(source):
+                err = f"no such mesh file: {source!r}"
+            else:
+                try:
+                    gmsh.merge(source)
+                except Exception as exc:
+                    err = f"gmsh cannot read {source!r}: {exc}"
+            if err:
+                comm.bcast(({}, err), root=root)
+                raise GeometryError(err)
+            mesh, ct, ft, groups = _finish(model)
+    else:
+        mesh, ct, ft, groups = _finish(None)
+    return mesh, ct, ft, groups, source
+
+
+# ============================================================ the FEM model
+def _allgather_rows(comm, arr, width, dtype):
+    arr = np.asarray(arr, dtype=dtype).reshape(-1, width)
+    if comm.size == 1:
+        return arr
+    return np.concatenate(comm.allgather(arr), axis=0)
+
+
+class _FemModel:
+    """A distributed dolfinx mesh with its data gathered in rank-independent form."""
+
+    def __init__(self, model_or_path, comm):
+        t0 = time.perf_counter()
+        self.comm = comm
+        self.mesh, self.ct, self.ft, self.groups, self.source = _read_model(model_or_path, comm)
+        mesh = self.mesh
+        self.V = compat.vector_p1_space(mesh)
+        self.bs = int(self.V.dofmap.index_map_bs)
+        if self.bs != 2:
+            raise GeometryError(f"expected a 2-D mesh, got a vector space of block size {self.bs}")
+        self.cell_type = compat.cell_type_name(mesh)
+
+        # local geometry: node coordinates and input (gmsh) indices
+        gd = compat.geometry_dofmap(mesh)
+        igi = compat.input_global_indices(mesh)
+        xy = compat.geometry_points(mesh)
+        cv = compat.cell_vertices(mesh)
+        if cv.shape != gd.shape:
+            raise GeometryError("only linear (P1/Q1) meshes are supported")
+        # topological vertex -> geometry node (linear cells: same local order)
+        v2g = np.full(int(cv.max()) + 1 if cv.size else 0, -1, dtype=np.int64)
+        v2g[cv.ravel()] = gd.ravel()
+        self._v2orig = igi[v2g]
+        # block dof -> input node index, via the cell dofmaps
+        dm = compat.dofmap_array(self.V)
+        im = self.V.dofmap.index_map
+        nblocks = im.size_local + im.num_ghosts
+        dof_orig = np.full(nblocks, -1, dtype=np.int64)
+        dof_orig[dm.ravel()] = igi[gd.ravel()]
+        if np.any(dof_orig < 0):
+            raise GeometryError("some degrees of freedom are not attached to a mesh node")
+        self.dof_orig = dof_orig
+
+        # all nodes (gathered): input index -> compressed index 0..P-1 (same order)
+        nodes = _allgather_rows(comm, np.column_stack([igi, xy]), 3, float)
+        orig = nodes[:, 0].astype(np.int64)
+        self.orig_nodes, first = np.unique(orig, return_index=True)
+        self.points = nodes[first, 1:3].copy()
+
+        # global block index -> compressed node
+        owned = np.arange(im.size_local)
+        gblocks = compat.index_map_local_to_global(im, owned)
+        pairs = _allgather_rows(comm, np.column_stack([gblocks, self.node_index(dof_orig[owned])]), 2, np.int64)
+        self.block_node = np.full(int(im.size_global), -1, dtype=np.int64)
+        self.block_node[pairs[:, 0]] = pairs[:, 1]
+
+        # cells (owned), gathered, in input order, VTK node order, counter-clockwise
+        ncells = compat.num_owned(mesh, mesh.topology.dim)
+        self.num_owned_cells = ncells
+        cidx, cval = compat.meshtags_arrays(self.ct)
+        body = np.zeros(gd.shape[0], dtype=np.int64)
+        body[cidx] = cval
+        cells = self.node_index(igi[gd[:ncells]])
+        if self.cell_type == "quadrilateral":
+            cells = cells[:, _QUAD_TO_VTK]
+        occ = compat.original_cell_index(mesh)
+        key = occ[:ncells] if occ is not None else np.zeros(ncells, dtype=np.int64)
+        k = cells.shape[1]
+        rows = _allgather_rows(comm, np.column_stack([key, body[:ncells], cells]), k + 2, np.int64)
+        if occ is not None:
+            order = np.argsort(rows[:, 0], kind="stable")
+        else:  # rank-independent fallback: lexicographic by node indices
+            order = np.lexsort(rows[:, :1:-1].T)
+        rows = rows[order]
+        cells = rows[:, 2:]
+        P = self.points[cells]
+        area = 0.5 * np.sum(P[:, :, 0] * np.roll(P[:, :, 1], -1, axis=1) - np.roll(P[:, :, 0], -1, axis=1) * P[:, :, 1], axis=1)
+        flip = area < 0
+        if np.any(flip):
+            cells[flip] = cells[flip][:, ::-1]
+        self.cells = np.ascontiguousarray(cells)
+        self.cell_body = rows[:, 1].copy()
+
+        # tagged facets (gathered, deduplicated): tag, node a, node b, centroid of the adjacent cell
+        fidx, fval = compat.meshtags_arrays(self.ft)
+        if fidx.size:
+            fv = compat.facet_vertices(mesh)[fidx]
+            fa = self.node_index(self._v2orig[fv[:, 0]])
+            fb = self.node_index(self._v2orig[fv[:, 1]])
+            fc_arr, fc_off = compat.facet_cells(mesh)
+            cell_of = fc_arr[fc_off[fidx]]
+            cent = xy[gd[cell_of]].mean(axis=1)
+        else:
+            fa = fb = np.empty(0, dtype=np.int64)
+            cent = np.empty((0, 2))
+        frows = _allgather_rows(comm, np.column_stack([fval, fa, fb, cent]), 5, float)
+        ftag = frows[:, 0].astype(np.int64)
+        fab = frows[:, 1:3].astype(np.int64)
+        lo, hi = fab.min(axis=1), fab.max(axis=1)
+        _, uniq = np.unique(np.column_stack([ftag, lo, hi]), axis=0, return_index=True)
+        self.facet_tag = ftag[uniq]
+        self.facet_nodes = fab[uniq]
+        self.facet_centroid = frows[uniq, 3:5]
+
+        # body of each node and of each boundary piece
+        self.node_body = np.zeros(len(self.points), dtype=np.int64)
+        self.node_body[self.cells.ravel()] = np.repeat(self.cell_body, self.cells.shape[1])
+        self.timings = {"read": time.perf_counter() - t0}
+
+    # --------------------------------------------------------------- helpers
+    def node_index(self, orig):
+        """Compressed node index of input (gmsh) node indices."""
+        return np.searchsorted(self.orig_nodes, np.asarray(orig, dtype=np.int64))
+
+    def facet_tag_nodes(self, tag):
+        return self.facet_nodes[self.facet_tag == tag]
+
+    def tag_bodies(self):
+        """{1-D tag number: sorted list of bodies it touches}."""
+        out = {}
+        for (dim, num) in self.groups:
+            if dim == 1:
+                nodes = self.facet_tag_nodes(num).ravel()
+                out[num] = sorted(set(self.node_body[nodes].tolist()))
+        return out
+
+    # -------------------------------------------------------------- assembly
+    def stiffness_triplets(self, E, nu, plane):
+        """Owned rows of K as (node_r, comp_r, node_c, comp_c, value), compressed node indices."""
+        lam, mu = lame_parameters(E, nu, plane)
+        V = self.V
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        lam_c = compat.constant(self.mesh, lam)
+        mu_c = compat.constant(self.mesh, mu)
+
+        def eps(w):
+            return ufl.sym(ufl.grad(w))
+
+        def sigma(w):
+            return 2.0 * mu_c * eps(w) + lam_c * ufl.tr(eps(w)) * ufl.Identity(2)
+
+        a = ufl.inner(sigma(u), eps(v)) * ufl.dx
+        A = compat.assemble_matrix(compat.form(a))
+        ai, aj, av = A.getValuesCSR()
+        r0, r1 = A.getOwnershipRange()
+        rows = np.repeat(np.arange(r0, r1, dtype=np.int64), np.diff(ai))
+        cols = np.asarray(aj, dtype=np.int64)
+        vals = np.array(av, dtype=float, copy=True)
+        A.destroy()
+        bs = self.bs
+        return (self.block_node[rows // bs], rows % bs, self.block_node[cols // bs], cols % bs, vals)
+
+    def load_forms(self, tag_numbers, body_numbers):
+        """One linear form with a Constant per traction tag and per body force domain."""
+        V = self.V
+        v = ufl.TestFunction(V)
+        ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.ft)
+        dx = ufl.Measure("dx", domain=self.mesh, subdomain_data=self.ct)
+        consts = {}
+        L = None
+        for tag in tag_numbers:
+            c = compat.constant(self.mesh, np.zeros(2))
+            consts[("t", tag)] = c
+            term = ufl.dot(c, v) * ds(tag)
+            L = term if L is None else L + term
+        for body in body_numbers:
+            c = compat.constant(self.mesh, np.zeros(2))
+            consts[("b", body)] = c
+            term = ufl.dot(c, v) * (dx if body is None else dx(body))
+            L = term if L is None else L + term
+        if L is None:
+            c = compat.constant(self.mesh, np.zeros(2))
+            L = ufl.dot(c, v) * ufl.dx
+        return compat.form(L), consts
+
+    def assemble_load(self, compiled, consts, values):
+        """Owned load entries as (node, comp, value) for the given Constant values."""
+        for key, c in consts.items():
+            c.value[...] = values.get(key, np.zeros(2))
+        b = compat.assemble_vector(compiled)
+        vals = compat.owned_vector_values(b, self.V)
+        b.destroy()
+        j = np.arange(vals.size)
+        nodes = self.node_index(self.dof_orig[j // self.bs])
+        return nodes, j % self.bs, vals
+
+
+# ================================================================== public
+def full_stiffness(model_or_path=None, *, E=2.1e11, nu=0.3, plane="strain", comm=None):
+    """Stiffness of all DOFs (no elimination), for checks: whole on every rank.
+
+    Returns ``(K, points, cells, cell_body)``: K a SciPy CSR matrix of size 2P
+    with DOF ``2 * node + comp`` (nodes in the order of the gmsh node tags), and
+    the node coordinates, cells (VTK order) and cell bodies.
+    """
+    comm = MPI.COMM_WORLD if comm is None else comm
+    fem = _FemModel(model_or_path, comm)
+    nr, cr, nc, cc, v = fem.stiffness_triplets(E, nu, plane)
+    n = 2 * len(fem.points)
+    K = linalg.mat_from_triplets(2 * nr + cr, 2 * nc + cc, v, (n, n), comm)
+    Ks = linalg.gather_mat(K)
+    K.destroy()
+    return Ks, fem.points.copy(), fem.cells.copy(), fem.cell_body.copy()
+
+
+def _parse_tractions(tractions, groups, what):
+    out = {}
+    if tractions is None:
+        return out
+    if not isinstance(tractions, Mapping):
+        raise InputError(f"{what} must be a dict {{boundary tag: (tx, ty)}}, got {type(tractions).__name__}")
+    for spec, vec in tractions.items():
+        tag = _resolve_tag(spec, groups, 1, what)
+        out[tag] = out.get(tag, 0.0) + _vector2(vec, f"{what}[{spec!r}]")
+    return out
+
+
+def _parse_body_force(force, groups, what):
+    """None | (bx, by) on every body | {body: (bx, by)} -> {body number or None: vector}."""
+    if force is None:
+        return {}
+    if isinstance(force, Mapping):
+        out = {}
+        for spec, vec in force.items():
+            body = _resolve_tag(spec, groups, 2, what)
+            out[body] = out.get(body, 0.0) + _vector2(vec, f"{what}[{spec!r}]")
+        return out
+    return {None: _vector2(force, what)}
+
+
+def assemble_contact_system(
+    model_or_path=None,
+    *,
+    E=2.1e11,
+    nu=0.3,
+    plane="strain",
+    clamp=("left1", "left2"),
+    tractions1=None,
+    tractions2=None,
+    body_force1=None,
+    body_force2=None,
+    friction=0.0,
+    rho=None,
+    comm=None,
+    match_tol=1e-8,
+    info=None,
+) -> ContactSystem:
+    """Assemble the discrete contact problem of a tagged 2-D gmsh model.
+
+    Parameters
+    ----------
+    model_or_path : the gmsh model (``gmsh.model``, meshed, on rank 0; None means
+        ``gmsh.model``) or the path of a ``.msh`` file.  Physical groups per DESIGN.md.
+    E, nu : Young's modulus and Poisson's ratio (default steel-like 2.1e11 Pa, 0.3)
+    plane : ``"strain"`` (default) or ``"stress"`` (thickness 1)
+    clamp : boundary pieces (1-D group names or numbers) where u = 0 (both components)
+    tractions1, tractions2 : ``{boundary piece: (tx, ty)}`` surface tractions of the
+        load vectors f1 and f2 (force per unit length)
+    body_force1, body_force2 : body forces of f1 and f2 (force per unit area): None,
+        one vector ``(bx, by)`` on all bodies, or ``{body name/number: (bx, by)}``
+    friction : Coulomb coefficient F (scalar or one per contact node)
+    rho : augmentation parameter (default :func:`cfcontact.system.default_rho`)
+    comm : mpi4py communicator (default COMM_WORLD)
+    match_tol : contact nodes pair up when closer than ``match_tol * h`` (h: the
+        shortest contact1 facet)
+    info : extra entries for ``ContactSystem.info``
+
+    Raises
+    ------
+    GeometryError : missing mandatory groups, unknown tags, non-matching interface
+    InputError : bad material or load data, a body without Dirichlet condition
+    """
+    t_start = time.perf_counter()
+    comm = MPI.COMM_WORLD if comm is None else comm
+    lame_parameters(E, nu, plane)  # validate before any collective work
+    fem = _FemModel(model_or_path, comm)
+    groups = fem.groups
+    P = len(fem.points)
+    rigid = (2, BODY2) not in groups
+
+    # ---------------------------------------------------------------- inputs
+    if isinstance(clamp, (str, int, np.integer)):
+        clamp = (clamp,)
+    clamp_tags = [_resolve_tag(c, groups, 1, "clamp") for c in (clamp or ())]
+    trac = [_parse_tractions(tractions1, groups, "tractions1"), _parse_tractions(tractions2, groups, "tractions2")]
+    bforce = [_parse_body_force(body_force1, groups, "body_force1"), _parse_body_force(body_force2, groups, "body_force2")]
+
+    # ------------------------------------------------------ Dirichlet / bodies
+    clamped = np.zeros(P, dtype=bool)
+    for tag in clamp_tags:
+        clamped[fem.facet_tag_nodes(tag).ravel()] = True
+    tag_bodies = fem.tag_bodies()
+    for body in np.unique(fem.cell_body):
+        body_nodes = np.unique(fem.cells[fem.cell_body == body])
+        if np.count_nonzero(clamped[body_nodes]) < 2:
+            pieces = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
+                      if bs == [int(body)] and t not in (CONTACT1, CONTACT2)]
+            used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
+            raise InputError(
+                f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'}) has no Dirichlet condition: "
+                f"none of the clamped boundary pieces ({used}) lies on it, so its stiffness is singular "
+                f"(rigid-body motions). Clamp one of its boundary pieces"
+                + (f", e.g. one of: {', '.join(pieces)}" if pieces else "")
+            )
+
+    # canonical numbering: free DOFs by (node, component)
+    free = np.repeat(~clamped, 2)
+    canon = np.full(2 * P, -1, dtype=np.int64)
+    n = int(np.count_nonzero(free))
+    canon[free] = np.arange(n)
+    dof_node = np.repeat(np.arange(P), 2)[free]
+    dof_comp = np.tile([0, 1], P)[free]
+
+    # ------------------------------------------------------------- stiffness
+    t0 = time.perf_counter()
+    nr, cr, nc, cc, v = fem.stiffness_triplets(E, nu, plane)
+    r = canon[2 * nr + cr]
+    c = canon[2 * nc + cc]
+    keep = (r >= 0) & (c >= 0)
+    r, c, v = r[keep], c[keep], 0.5 * v[keep]
+    # symmetric by construction: K = (A + A^T) / 2 (A is symmetric up to rounding)
+    K = linalg.mat_from_triplets(np.concatenate([r, c]), np.concatenate([c, r]), np.concatenate([v, v]), (n, n), comm)
+
+    # ----------------------------------------------------------------- loads
+    tag_numbers = sorted(set(trac[0]) | set(trac[1]))
+    body_numbers = sorted(set(bforce[0]) | set(bforce[1]), key=lambda b: -1 if b is None else b)
+    compiled, consts = fem.load_forms(tag_numbers, body_numbers)
+    loads = []
+    for k in range(2):
+        values = {("t", t): vec for t, vec in trac[k].items()}
+        values.update({("b", b): vec for b, vec in bforce[k].items()})
+        ln, lc, lv = fem.assemble_load(compiled, consts, values)
+        idx = canon[2 * ln + lc]
+        keep = idx >= 0
+        loads.append(linalg.vec_from_triplets(idx[keep], lv[keep], n, comm))
+    t_assemble = time.perf_counter() - t0
+
+    # --------------------------------------------------------------- contact
+    pairs, normals, tangents = _contact_pairs(fem, clamped, rigid, match_tol)
+    m = len(pairs)
+    rows, cols, nvals, tvals = [], [], [], []
+    if comm.rank == 0:
+        for i, (a, b) in enumerate(pairs):
+            for node, sign in ((a, 1.0), (b, -1.0)):
+                if node < 0:
+                    continue
+                for comp in (0, 1):
+                    d = canon[2 * node + comp]
+                    if d >= 0:
+                        rows.append(i)
+                        cols.append(d)
+                        nvals.append(sign * normals[i, comp])
+                        tvals.append(sign * tangents[i, comp])
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    nvals = np.asarray(nvals, dtype=float)
+    tvals = np.asarray(tvals, dtype=float)
+    nk, tk = nvals != 0.0, tvals != 0.0
+    N = linalg.mat_from_triplets(rows[nk], cols[nk], nvals[nk], (m, n), comm)
+    T = linalg.mat_from_triplets(rows[tk], cols[tk], tvals[tk], (m, n), comm)
+
+    if rho is None:
+        diag = linalg.gather_vec(K.getDiagonal())
+        NT = None
+        if comm.rank == 0:
+            NT = (sp.csr_matrix((nvals[nk], (rows[nk], cols[nk])), shape=(m, n)),
+                  sp.csr_matrix((tvals[tk], (rows[tk], cols[tk])), shape=(m, n)))
+        NT = comm.bcast(NT, root=0)
+        rho = default_rho(sp.diags(diag), *NT)
+
+    pair_array = np.asarray(pairs, dtype=np.int64).reshape(m, 2)
+    geometry = ContactGeometry(
+        points=fem.points.copy(),
+        cells=fem.cells.copy(),
+        cell_body=fem.cell_body.copy(),
+        dof_node=dof_node,
+        dof_comp=dof_comp,
+        contact_nodes=pair_array,
+        contact_points=fem.points[pair_array[:, 0]].reshape(m, 2),
+        normals=normals,
+        tangents=tangents,
+    )
+    label = {t: _tag_label(groups, 1, t) for t in set(clamp_tags) | set(tag_numbers)}
+    meta = {
+        "source": fem.source,
+        "cell_type": fem.cell_type,
+        "E": float(E),
+        "nu": float(nu),
+        "plane": plane,
+        "clamp": [label[t] for t in clamp_tags],
+        "tractions1": {label[t]: vec.tolist() for t, vec in trac[0].items()},
+        "tractions2": {label[t]: vec.tolist() for t, vec in trac[1].items()},
+        "body_force1": {str(b): vec.tolist() for b, vec in bforce[0].items()},
+        "body_force2": {str(b): vec.tolist() for b, vec in bforce[1].items()},
+        "rigid_foundation": rigid,
+        "num_nodes": P,
+        "num_cells": len(fem.cells),
+        "physical_groups": {f"{d}:{num}": name for (d, num), name in sorted(groups.items())},
+        "dolfinx": ".".join(map(str, compat.DOLFINX_VERSION)),
+        "mpi_size": comm.size,
+        "owned_cells": fem.num_owned_cells,  # cells owned by this rank (differs between ranks)
+        "timings": {"read": fem.timings["read"], "assemble": t_assemble, "total": time.perf_counter() - t_start},
+    }
+    if info:
+        meta.update(info)
+    return ContactSystem(K=K, N=N, T=T, f1=loads[0], f2=loads[1], friction=friction, rho=rho,
+                         geometry=geometry, info=meta)
+
+
+def _contact_pairs(fem, clamped, rigid, match_tol):
+    """Contact pairs (m, 2) (body-1 node, body-2 node or -1), normals and tangents (m, 2)."""
+    from scipy.spatial import cKDTree
+
+    groups = fem.groups
+    pts = fem.points
+    f1 = fem.facet_tag_nodes(CONTACT1)
+    if len(f1) == 0:
+        raise GeometryError("contact1 (1-D group 10) has no facets in the mesh")
+    if np.any(fem.node_body[f1.ravel()] != BODY1):
+        raise GeometryError("contact1 (1-D group 10) must lie on the boundary of body1 (2-D group 1)")
+    cent = fem.facet_centroid[fem.facet_tag == CONTACT1]
+    # outer normals of body 1 on its contact facets, averaged at the nodes
+    d = pts[f1[:, 1]] - pts[f1[:, 0]]
+    length = np.hypot(d[:, 0], d[:, 1])
+    if np.any(length <= 0):
+        raise GeometryError("contact1 has facets of zero length")
+    fn = np.column_stack([d[:, 1], -d[:, 0]]) / length[:, None]
+    mid = 0.5 * (pts[f1[:, 1]] + pts[f1[:, 0]])
+    outward = np.sum(fn * (mid - cent), axis=1)
+    fn[outward < 0] *= -1.0
+    nodes1 = np.unique(f1)
+    acc = np.zeros((len(nodes1), 2))
+    pos = np.searchsorted(nodes1, f1)
+    order = np.lexsort((f1[:, 1], f1[:, 0]))  # fixed summation order
+    for j in order:
+        acc[pos[j, 0]] += fn[j]
+        acc[pos[j, 1]] += fn[j]
+    norm = np.hypot(acc[:, 0], acc[:, 1])
+    if np.any(norm < 1e-12):
+        bad = nodes1[norm < 1e-12]
+        raise GeometryError(f"contact1 normal undefined at node(s) {pts[bad].tolist()} (facets with opposite normals)")
+    normal1 = acc / norm[:, None]
+    h = float(length.min())
+    tol = float(match_tol) * h
+
+    if rigid:
+        partner = np.full(len(nodes1), -1, dtype=np.int64)
+    else:
+        f2 = fem.facet_tag_nodes(CONTACT2)
+        if len(f2) == 0:
+            raise GeometryError("contact2 (1-D group 20) has no facets in the mesh")
+        if np.any(fem.node_body[f2.ravel()] != BODY2):
+            raise GeometryError("contact2 (1-D group 20) must lie on the boundary of body2 (2-D group 2)")
+        nodes2 = np.unique(f2)
+        dist12, j12 = cKDTree(pts[nodes2]).query(pts[nodes1])
+        dist21, j21 = cKDTree(pts[nodes1]).query(pts[nodes2])
+        bad1 = np.flatnonzero(dist12 > tol)
+        bad2 = np.flatnonzero(dist21 > tol)
+        if bad1.size or bad2.size:
+            lines = []
+            for bad, nodes, dist, mine, other in ((bad1, nodes1, dist12, "contact1", "contact2"),
+                                                  (bad2, nodes2, dist21, "contact2", "contact1")):
+                for k in bad[:10]:
+                    x, y = pts[nodes[k]]
+                    lines.append(f"{mine} node at ({x:.6g}, {y:.6g}): nearest {other} node at distance {dist[k]:.3g}")
+                if bad.size > 10:
+                    lines.append(f"... and {bad.size - 10} more {mine} nodes")
+            raise GeometryError(
+                f"non-matching contact interface: {bad1.size} contact1 node(s) and {bad2.size} contact2 node(s) "
+                f"have no partner within {tol:.3g} (match_tol={match_tol:g} x shortest contact facet {h:.3g}); "
+                "the nodes of contact1 and contact2 must coincide pairwise:\n  " + "\n  ".join(lines))
+        partner = nodes2[j12]
+        if np.unique(partner).size != partner.size or nodes2.size != nodes1.size:
+            raise GeometryError("contact1 and contact2 nodes do not pair one-to-one (match_tol too large?)")
+
+    # drop fully clamped pairs
+    keep = ~(clamped[nodes1] & ((partner < 0) | clamped[np.maximum(partner, 0)]))
+    nodes1, partner, normal1 = nodes1[keep], partner[keep], normal1[keep]
+    tangent1 = np.column_stack([-normal1[:, 1], normal1[:, 0]])
+    # order along the interface: by the coordinate along the mean tangent
+    if len(nodes1):
+        tbar = tangent1.sum(axis=0)
+        if np.hypot(*tbar) < 1e-12 * len(nodes1):
+            tbar = tangent1[0]
+        s = pts[nodes1] @ (tbar / np.hypot(*tbar))
+        order = np.lexsort((nodes1, s))
+        nodes1, partner, normal1, tangent1 = nodes1[order], partner[order], normal1[order], tangent1[order]
+    pairs = np.column_stack([nodes1, partner]).astype(np.int64).reshape(-1, 2)
+    return pairs, normal1.reshape(-1, 2), tangent1.reshape(-1, 2)

@@ -1,0 +1,134 @@
+"""Ready-made FEM models (gmsh geometry + assembly).
+
+Importing this module does not import dolfinx or gmsh: the assembly layer and the
+geometry scripts are imported inside the functions.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import math
+import os
+import sys
+from types import MappingProxyType
+
+__all__ = ["two_blocks", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTIONS2"]
+
+#: Default surface tractions (Pa = N/m^2, force per unit length in 2-D) of the load f1:
+#: a downward pressure of 1e8 on the top of body 1 with a small shear (ratio 0.2).
+#: Placeholders for the demos to tune: with steel the largest displacement of the
+#: free (contact-less) body 1 would be ~0.06 of its length 3.
+DEFAULT_TRACTIONS1 = MappingProxyType({"top1": (2.0e7, -1.0e8)})
+#: Default surface tractions of the load f2: mostly shear (1e8), less pressure (2e7).
+DEFAULT_TRACTIONS2 = MappingProxyType({"top1": (1.0e8, -2.0e7)})
+
+
+def _meshes_module(name):
+    """``cfcontact.meshes.<name>``; from the source tree's ``meshes/`` when not installed."""
+    full = f"cfcontact.meshes.{name}"
+    try:
+        return importlib.import_module(full)
+    except ModuleNotFoundError as exc:
+        if exc.name not in ("cfcontact.meshes", full):
+            raise
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "meshes", f"{name}.py")
+    if not os.path.isfile(path):
+        raise ModuleNotFoundError(f"No module named {full!r} (and no {path})", name=full)
+    spec = importlib.util.spec_from_file_location(full, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[full] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _rotate(vec, angle):
+    c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    try:
+        x, y = (float(t) for t in vec)
+    except (TypeError, ValueError):
+        return vec  # malformed: the assembly reports it
+    return (c * x - s * y, s * x + c * y)
+
+
+def _rotate_loads(loads, angle, kind):
+    if loads is None or angle == 0.0:
+        return loads
+    if kind == "body" and not hasattr(loads, "items"):
+        return _rotate(loads, angle)
+    if not hasattr(loads, "items"):
+        return loads
+    return {k: _rotate(v, angle) for k, v in loads.items()}
+
+
+def two_blocks(
+    *,
+    nx=30,
+    ny=10,
+    length=3.0,
+    height=1.0,
+    cell="quadrilateral",
+    E=2.1e11,
+    nu=0.3,
+    plane="strain",
+    friction=0.0,
+    clamp=None,
+    tractions1=DEFAULT_TRACTIONS1,
+    tractions2=DEFAULT_TRACTIONS2,
+    body_force1=None,
+    body_force2=None,
+    rho=None,
+    angle=0.0,
+    comm=None,
+    nx2=None,
+    ny2=None,
+    height2=None,
+    foundation=False,
+    match_tol=1e-8,
+):
+    """The seed's two stacked blocks as a :class:`cfcontact.system.ContactSystem`.
+
+    Body 1 ``[0, length] x [0, height]`` lies on body 2 ``[0, length] x [-height, 0]``;
+    each is meshed with ``nx x ny`` cells (quadrilaterals, or triangles = each
+    quadrilateral split in two) and, by default, clamped along its left edge
+    (``left1``, ``left2``).  Defaults: 30 x 10 cells, length 3, height 1, steel
+    (E = 2.1e11 Pa, nu = 0.3), plane strain -> n = 1320, m = 30.
+
+    Loads: ``tractions1`` / ``tractions2`` (dicts ``{boundary piece: (tx, ty)}``,
+    pieces ``top1, right1, left1, bottom2, right2, left2``) and ``body_force1`` /
+    ``body_force2`` define f1 and f2.  Defaults :data:`DEFAULT_TRACTIONS1`
+    (``top1``: (2e7, -1e8)) and :data:`DEFAULT_TRACTIONS2` (``top1``: (1e8, -2e7));
+    pass ``{}`` for no traction.  Load vectors are given in the frame of the
+    unrotated blocks and turn with the assembly when ``angle`` (degrees,
+    counter-clockwise about the origin) is not zero.
+
+    ``foundation=True`` builds body 1 alone on a rigid foundation (clamp default
+    ``("left1",)``).  ``nx2, ny2, height2`` set body 2's mesh separately (``nx2 !=
+    nx`` makes a non-matching interface, which is rejected).  The remaining
+    arguments go to :func:`cfcontact.assembly.assemble_contact_system`.
+    """
+    from mpi4py import MPI
+
+    from cfcontact import compat  # imports dolfinx
+    from cfcontact.assembly import assemble_contact_system
+
+    comm = MPI.COMM_WORLD if comm is None else comm
+    geo = _meshes_module("two_blocks")
+    params = geo.check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
+    if clamp is None:
+        clamp = ("left1",) if foundation else ("left1", "left2")
+    angle = params["angle"]
+    kwargs = dict(
+        E=E, nu=nu, plane=plane, clamp=clamp,
+        tractions1=_rotate_loads(tractions1, angle, "traction"),
+        tractions2=_rotate_loads(tractions2, angle, "traction"),
+        body_force1=_rotate_loads(body_force1, angle, "body"),
+        body_force2=_rotate_loads(body_force2, angle, "body"),
+        friction=friction, rho=rho, comm=comm, match_tol=match_tol,
+    )
+    info = {"model": "two_blocks", "model_parameters": dict(params, foundation=bool(foundation))}
+    if comm.rank == 0:
+        with compat.gmsh_model("cfcontact-two-blocks") as model:
+            geo.build(foundation=foundation, **params)
+            return assemble_contact_system(model, info=info, **kwargs)
+    return assemble_contact_system(None, info=info, **kwargs)

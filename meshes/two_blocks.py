@@ -1,0 +1,233 @@
+"""Two stacked elastic blocks: the seed's default geometry (gmsh only, no dolfinx).
+
+Body 1 (upper, ``body1``) occupies ``[0, length] x [0, height]``, body 2 (lower,
+``body2``) occupies ``[0, length] x [-height2, 0]``; they touch along the
+interface ``y = 0`` (``contact1`` on body 1, ``contact2`` on body 2).  Both blocks
+are meshed with structured (transfinite) grids of ``nx x ny`` cells (body 2:
+``nx2 x ny2``), quadrilaterals or triangles (each quadrilateral split in two).
+The two bodies do *not* share nodes: the interface nodes are duplicated, one copy
+per body, at the same coordinates when ``nx2 == nx`` (the contact pairs).
+
+With ``angle`` (degrees) the whole assembly is rotated counter-clockwise about the
+origin (the left end of the interface), so the interface is inclined and the
+outer normal of body 1 on it is ``(sin(angle), -cos(angle))``.
+
+Physical groups (numbers and names, see DESIGN.md)::
+
+    body1 = 1      body2 = 2          (2-D)
+    contact1 = 10  top1 = 12  right1 = 13  left1 = 14      (1-D, body 1)
+    contact2 = 20  bottom2 = 22  right2 = 23  left2 = 24   (1-D, body 2)
+
+Defaults: ``nx=30, ny=10, length=3.0, height=1.0`` per block.  Clamped along
+``left1`` and ``left2`` this model has n = 2*2*(31*11 - 11) = 1320 free DOFs and
+m = 30 contact pairs (the interface node clamped in both bodies is not a contact
+node).
+
+With ``foundation=True`` only body 1 is built (a block on a rigid foundation:
+``contact1`` is the part of its boundary that touches the foundation).
+
+Usage as a library (gmsh initialised by the caller; builds into the current model)::
+
+    from cfcontact.meshes import two_blocks
+    two_blocks.build(nx=30, ny=10)
+
+Usage as a script (writes a .msh file)::
+
+    python3 meshes/two_blocks.py two_blocks.msh --nx 30 --ny 10 --cell triangle
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+
+import gmsh
+
+try:  # typed error of the package when available; it is a ValueError
+    from cfcontact.errors import InputError as _InputError
+except Exception:  # pragma: no cover - running as a stand-alone script
+    _InputError = ValueError
+
+#: physical group numbers of the two-block model
+TAGS = {
+    "body1": (2, 1),
+    "body2": (2, 2),
+    "contact1": (1, 10),
+    "top1": (1, 12),
+    "right1": (1, 13),
+    "left1": (1, 14),
+    "contact2": (1, 20),
+    "bottom2": (1, 22),
+    "right2": (1, 23),
+    "left2": (1, 24),
+}
+
+#: default parameters of :func:`build`
+DEFAULTS = dict(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0)
+
+CELLS = ("quadrilateral", "triangle")
+
+
+def _check_count(name, value):
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        value = operator.index(value)
+    except TypeError:
+        raise _InputError(f"{name} must be a positive integer, got {value!r}") from None
+    if value < 1:
+        raise _InputError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+def _check_length(name, value):
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise _InputError(f"{name} must be a positive number, got {value!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise _InputError(f"{name} must be a positive number, got {value!r}")
+    return value
+
+
+def _check_cell(cell):
+    aliases = {"quadrilateral": "quadrilateral", "quad": "quadrilateral", "quadrilaterals": "quadrilateral",
+               "triangle": "triangle", "tri": "triangle", "triangles": "triangle"}
+    key = str(cell).lower()
+    if key not in aliases:
+        raise _InputError(f"cell must be one of {CELLS}, got {cell!r}")
+    return aliases[key]
+
+
+def check_parameters(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0, *,
+                     nx2=None, ny2=None, height2=None):
+    """Validated, normalised parameters of :func:`build` as a dict (raises InputError / ValueError)."""
+    nx, ny = _check_count("nx", nx), _check_count("ny", ny)
+    nx2 = nx if nx2 is None else _check_count("nx2", nx2)
+    ny2 = ny if ny2 is None else _check_count("ny2", ny2)
+    length = _check_length("length", length)
+    height = _check_length("height", height)
+    height2 = height if height2 is None else _check_length("height2", height2)
+    cell = _check_cell(cell)
+    try:
+        angle = float(angle)
+    except (TypeError, ValueError):
+        raise _InputError(f"angle must be a number (degrees), got {angle!r}") from None
+    if not math.isfinite(angle):
+        raise _InputError(f"angle must be finite, got {angle!r}")
+    return dict(nx=nx, ny=ny, length=length, height=height, cell=cell, angle=angle,
+                nx2=nx2, ny2=ny2, height2=height2)
+
+
+def build(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0, *,
+          nx2=None, ny2=None, height2=None, foundation=False, mesh=True):
+    """Build the two-block geometry and mesh into the *current* gmsh model.
+
+    Parameters
+    ----------
+    nx, ny : cells along the interface / across the thickness of body 1 (default 30 x 10)
+    length : width of both blocks (default 3.0)
+    height : thickness of body 1 (default 1.0); ``height2`` of body 2 (default ``height``)
+    cell : ``"quadrilateral"`` (default) or ``"triangle"`` (each quadrilateral split in two)
+    angle : rotation of the whole assembly about the origin, degrees counter-clockwise
+    nx2, ny2 : cells of body 2 (default ``nx``, ``ny``); ``nx2 != nx`` gives a
+        non-matching interface (useful only to test error handling)
+    foundation : build body 1 only (block on a rigid foundation)
+    mesh : generate the 2-D mesh (default True)
+
+    Returns
+    -------
+    dict name -> (dim, number) of the physical groups created.
+    """
+    p = check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
+    nx, ny, length, height, cell, angle = p["nx"], p["ny"], p["length"], p["height"], p["cell"], p["angle"]
+    nx2, ny2, height2 = p["nx2"], p["ny2"], p["height2"]
+
+    c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    geo = gmsh.model.geo
+
+    def point(x, y):
+        return geo.addPoint(c * x - s * y, s * x + c * y, 0.0)
+
+    def block(x0, y0, x1, y1, mx, my):
+        """Rectangle [x0,x1]x[y0,y1]; returns (surface, bottom, right, top, left) curve tags.
+
+        Lines are oriented left->right (bottom, top) and bottom->top (right, left),
+        so that parallel edges share one parametrisation; the loop fixes the sense.
+        """
+        p1, p2, p3, p4 = point(x0, y0), point(x1, y0), point(x1, y1), point(x0, y1)
+        lb = geo.addLine(p1, p2)
+        lr = geo.addLine(p2, p3)
+        lt = geo.addLine(p4, p3)
+        ll = geo.addLine(p1, p4)
+        loop = geo.addCurveLoop([lb, lr, -lt, -ll])
+        surf = geo.addPlaneSurface([loop])
+        for ln in (lb, lt):
+            geo.mesh.setTransfiniteCurve(ln, mx + 1)
+        for ln in (lr, ll):
+            geo.mesh.setTransfiniteCurve(ln, my + 1)
+        geo.mesh.setTransfiniteSurface(surf, "Left", [p1, p2, p3, p4])
+        if cell == "quadrilateral":
+            geo.mesh.setRecombine(2, surf)
+        return surf, lb, lr, lt, ll
+
+    s1, c1, r1, t1, l1 = block(0.0, 0.0, length, height, nx, ny)
+    groups = {
+        "body1": (2, [s1]),
+        "contact1": (1, [c1]),
+        "top1": (1, [t1]),
+        "right1": (1, [r1]),
+        "left1": (1, [l1]),
+    }
+    if not foundation:
+        s2, b2, r2, c2, l2 = block(0.0, -height2, length, 0.0, nx2, ny2)
+        groups.update({
+            "body2": (2, [s2]),
+            "contact2": (1, [c2]),
+            "bottom2": (1, [b2]),
+            "right2": (1, [r2]),
+            "left2": (1, [l2]),
+        })
+    geo.synchronize()
+    created = {}
+    for name, (dim, ents) in groups.items():
+        number = TAGS[name][1]
+        gmsh.model.addPhysicalGroup(dim, ents, number)
+        gmsh.model.setPhysicalName(dim, number, name)
+        created[name] = (dim, number)
+    if mesh:
+        gmsh.model.mesh.generate(2)
+    return created
+
+
+def _main(argv=None):
+    import argparse
+
+    ap = argparse.ArgumentParser(description="Write the two-block contact model as a gmsh .msh file.")
+    ap.add_argument("output", help="output file (.msh)")
+    ap.add_argument("--nx", type=int, default=DEFAULTS["nx"])
+    ap.add_argument("--ny", type=int, default=DEFAULTS["ny"])
+    ap.add_argument("--length", type=float, default=DEFAULTS["length"])
+    ap.add_argument("--height", type=float, default=DEFAULTS["height"])
+    ap.add_argument("--cell", choices=CELLS, default=DEFAULTS["cell"])
+    ap.add_argument("--angle", type=float, default=DEFAULTS["angle"], help="rotation in degrees")
+    ap.add_argument("--nx2", type=int, default=None)
+    ap.add_argument("--ny2", type=int, default=None)
+    ap.add_argument("--height2", type=float, default=None)
+    ap.add_argument("--foundation", action="store_true", help="body 1 only (rigid foundation)")
+    args = ap.parse_args(argv)
+    gmsh.initialize([], False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("two_blocks")
+        build(args.nx, args.ny, args.length, args.height, args.cell, args.angle,
+              nx2=args.nx2, ny2=args.ny2, height2=args.height2, foundation=args.foundation)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(args.output)
+    finally:
+        gmsh.finalize()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())

@@ -1,0 +1,370 @@
+"""FEM assembly layer: each test compares with an independent reference."""
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.sparse as sp
+
+pytest.importorskip("dolfinx")
+pytest.importorskip("gmsh")
+
+from cfcontact import compat  # noqa: E402
+from cfcontact.assembly import assemble_contact_system, full_stiffness, lame_parameters  # noqa: E402
+from cfcontact.errors import GeometryError, InputError  # noqa: E402
+from cfcontact.models import _meshes_module, two_blocks  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+E, NU = 2.1e11, 0.3
+
+
+def geo():
+    return _meshes_module("two_blocks")
+
+
+def dof(system, node, comp):
+    """Index of the free DOF (node, comp), located through the geometry tables."""
+    g = system.geometry
+    hit = np.flatnonzero((g.dof_node == node) & (g.dof_comp == comp))
+    return int(hit[0]) if hit.size else None
+
+
+# --------------------------------------------------------------- default model
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_default_model_dimensions(cell):
+    t0 = time.perf_counter()
+    S = two_blocks(cell=cell)
+    elapsed = time.perf_counter() - t0
+    assert (S.n, S.m) == (1320, 30)
+    g = S.geometry
+    assert g.points.shape == (2 * 31 * 11, 2)
+    ncell = 30 * 10 * (1 if cell == "quadrilateral" else 2)
+    assert g.cells.shape == (2 * ncell, 4 if cell == "quadrilateral" else 3)
+    assert np.bincount(g.cell_body).tolist() == [0, ncell, ncell]
+    # contact points: x = 0.1, 0.2, ..., 3.0 on y = 0 (the clamped x = 0 pair excluded), in order
+    np.testing.assert_allclose(g.contact_points[:, 0], 0.1 * np.arange(1, 31), atol=1e-12)
+    np.testing.assert_allclose(g.contact_points[:, 1], 0.0, atol=1e-14)
+    a, b = g.contact_nodes.T
+    np.testing.assert_array_equal(g.points[a], g.points[b])
+    assert np.all(g.cell_body[np.any(np.isin(g.cells, a), axis=1)] == 1)
+    assert np.all(g.cell_body[np.any(np.isin(g.cells, b), axis=1)] == 2)
+    # cells counter-clockwise (shoelace area > 0)
+    P = g.points[g.cells]
+    area = 0.5 * np.sum(P[:, :, 0] * np.roll(P[:, :, 1], -1, 1) - np.roll(P[:, :, 0], -1, 1) * P[:, :, 1], axis=1)
+    np.testing.assert_allclose(area, 0.01 / (1 if cell == "quadrilateral" else 2), rtol=1e-10)
+    # DOF table: (node, comp) increasing; clamped nodes are those with x == 0
+    key = g.dof_node * 2 + g.dof_comp
+    assert np.all(np.diff(key) > 0)
+    clamped = np.setdiff1d(np.arange(len(g.points)), g.dof_node)
+    np.testing.assert_allclose(g.points[clamped, 0], 0.0, atol=1e-14)
+    assert clamped.size == 22
+    assert elapsed < 10.0  # (< 2 s once the forms are JIT-compiled; first run compiles)
+
+
+def test_default_model_fast():
+    two_blocks(nx=2, ny=1)  # JIT compile the forms
+    t0 = time.perf_counter()
+    two_blocks()
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_contact_rows_flat():
+    S = two_blocks(nx=6, ny=2)
+    K, N, T, f1, f2 = S.to_scipy()
+    g = S.geometry
+    np.testing.assert_array_equal(g.normals, np.tile([0.0, -1.0], (S.m, 1)))
+    np.testing.assert_array_equal(g.tangents, np.tile([1.0, 0.0], (S.m, 1)))
+    Nd, Td = N.toarray(), T.toarray()
+    for i, (a, b) in enumerate(g.contact_nodes):
+        expected_n = np.zeros(S.n)
+        expected_t = np.zeros(S.n)
+        # (u1 - u2) . n with n = (0, -1);  (u1 - u2) . t with t = (1, 0)
+        expected_n[dof(S, a, 1)] = -1.0
+        expected_n[dof(S, b, 1)] = 1.0
+        expected_t[dof(S, a, 0)] = 1.0
+        expected_t[dof(S, b, 0)] = -1.0
+        np.testing.assert_array_equal(Nd[i], expected_n)
+        np.testing.assert_array_equal(Td[i], expected_t)
+
+
+def test_contact_rows_inclined():
+    angle = 30.0
+    S = two_blocks(nx=6, ny=2, angle=angle, cell="triangle")
+    g = S.geometry
+    c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
+    n = np.array([s, -c])  # (0, -1) rotated by +30 degrees
+    t = np.array([c, s])
+    np.testing.assert_allclose(g.normals, np.tile(n, (S.m, 1)), atol=1e-14)
+    np.testing.assert_allclose(g.tangents, np.tile(t, (S.m, 1)), atol=1e-14)
+    # contact points along the inclined interface, ordered by arc length
+    arc = g.contact_points @ t
+    np.testing.assert_allclose(arc, 0.5 * np.arange(1, 7), atol=1e-12)
+    np.testing.assert_allclose(g.contact_points @ n, 0.0, atol=1e-14)
+    N, T = S.contact_maps()
+    for i, (a, b) in enumerate(g.contact_nodes):
+        row = N.getrow(i).toarray().ravel()
+        assert row[dof(S, a, 0)] == pytest.approx(n[0]) and row[dof(S, a, 1)] == pytest.approx(n[1])
+        assert row[dof(S, b, 0)] == pytest.approx(-n[0]) and row[dof(S, b, 1)] == pytest.approx(-n[1])
+        assert np.count_nonzero(row) == 4
+        trow = T.getrow(i).toarray().ravel()
+        assert trow[dof(S, a, 0)] == pytest.approx(t[0]) and trow[dof(S, b, 1)] == pytest.approx(-t[1])
+
+
+def test_rotation_covariance():
+    """K, N, f of the rotated assembly are the rotated ones of the flat assembly."""
+    angle = 30.0
+    flat = two_blocks(nx=5, ny=2, cell="triangle", body_force1=(1e6, -3e6))
+    rot = two_blocks(nx=5, ny=2, cell="triangle", body_force1=(1e6, -3e6), angle=angle)
+    K0, N0, T0, f10, f20 = flat.to_scipy()
+    K1, N1, T1, f11, f21 = rot.to_scipy()
+    np.testing.assert_array_equal(flat.geometry.dof_node, rot.geometry.dof_node)
+    c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
+    R = sp.block_diag([np.array([[c, -s], [s, c]])] * (flat.n // 2)).tocsr()
+    scale = abs(K0).max()
+    assert abs(R @ K0 @ R.T - K1).max() < 1e-11 * scale
+    assert abs(N0 @ R.T - N1).max() < 1e-13
+    assert abs(T0 @ R.T - T1).max() < 1e-13
+    np.testing.assert_allclose(R @ f10, f11, atol=1e-12 * abs(f10).max())
+    np.testing.assert_allclose(R @ f20, f21, atol=1e-12 * abs(f20).max())
+
+
+# ------------------------------------------------------------------ stiffness
+def test_stiffness_spd_symmetric():
+    for cell in ("quadrilateral", "triangle"):
+        S = two_blocks(nx=6, ny=3, cell=cell)
+        K = S.to_scipy()[0]
+        assert abs(K - K.T).max() == 0.0
+        w = scipy.linalg.eigvalsh(K.toarray())
+        assert w[0] > 1e-8 * w[-1]
+
+
+def _D(plane):
+    if plane == "strain":
+        f = E / ((1 + NU) * (1 - 2 * NU))
+        return f * np.array([[1 - NU, NU, 0], [NU, 1 - NU, 0], [0, 0, (1 - 2 * NU) / 2]])
+    f = E / (1 - NU ** 2)
+    return f * np.array([[1, NU, 0], [NU, 1, 0], [0, 0, (1 - NU) / 2]])
+
+
+def _B(dN):
+    """Strain-displacement matrix (exx, eyy, gamma_xy) for DOFs (u0x, u0y, u1x, ...)."""
+    B = np.zeros((3, 2 * dN.shape[0]))
+    B[0, 0::2] = dN[:, 0]
+    B[1, 1::2] = dN[:, 1]
+    B[2, 0::2] = dN[:, 1]
+    B[2, 1::2] = dN[:, 0]
+    return B
+
+
+def _q1_unit_square(plane):
+    """B^T D B of the unit square, nodes (0,0), (1,0), (1,1), (0,1), 2x2 Gauss (exact)."""
+    xi = np.array([0.5 - 0.5 / np.sqrt(3), 0.5 + 0.5 / np.sqrt(3)])
+    D = _D(plane)
+    K = np.zeros((8, 8))
+    for x in xi:
+        for y in xi:
+            dN = np.array([[-(1 - y), -(1 - x)], [1 - y, -x], [y, x], [-y, 1 - x]])
+            B = _B(dN)
+            K += 0.25 * B.T @ D @ B
+    return K
+
+
+def _p1_triangle(xy, plane):
+    (x1, y1), (x2, y2), (x3, y3) = xy
+    area2 = (x2 - x1) * (y3 - y1) - (x3 - x1) * (y2 - y1)
+    dN = np.array([[y2 - y3, x3 - x2], [y3 - y1, x1 - x3], [y1 - y2, x2 - x1]]) / area2
+    B = _B(dN)
+    return 0.5 * abs(area2) * B.T @ _D(plane) @ B
+
+
+def _one_cell_full_stiffness(cell, plane):
+    with compat.gmsh_model("one-cell"):
+        geo().build(nx=1, ny=1, length=1.0, height=1.0, cell=cell)
+        import gmsh
+
+        return full_stiffness(gmsh.model, E=E, nu=NU, plane=plane)
+
+
+@pytest.mark.parametrize("plane", ["strain", "stress"])
+def test_one_quadrilateral_against_hand_computation(plane):
+    K, points, cells, body = _one_cell_full_stiffness("quadrilateral", plane)
+    Kref = _q1_unit_square(plane)
+    # body 1 = the unit square: find its nodes by coordinates
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    body1_nodes = np.unique(cells[body == 1])
+    nodes = [int(body1_nodes[np.argmin(np.hypot(*(points[body1_nodes] - c).T))]) for c in corners]
+    dofs = np.ravel([[2 * v, 2 * v + 1] for v in nodes])
+    Kd = K.toarray()
+    np.testing.assert_allclose(Kd[np.ix_(dofs, dofs)], Kref, rtol=0, atol=1e-12 * abs(Kref).max())
+    # block diagonal: body 1 does not couple to body 2 (separate interface nodes)
+    others = np.setdiff1d(np.arange(K.shape[0]), dofs)
+    assert abs(Kd[np.ix_(dofs, others)]).max() == 0.0
+    # rigid motions are in the kernel of the free (unclamped) element
+    lam, mu = lame_parameters(E, NU, plane)
+    assert mu == pytest.approx(E / (2 * (1 + NU)))
+
+
+@pytest.mark.parametrize("plane", ["strain", "stress"])
+def test_two_triangles_against_hand_computation(plane):
+    K, points, cells, body = _one_cell_full_stiffness("triangle", plane)
+    assert cells.shape == (4, 3)
+    Kref = np.zeros(K.shape)
+    for tri in cells:
+        Ke = _p1_triangle(points[tri], plane)
+        dofs = np.ravel([[2 * v, 2 * v + 1] for v in tri])
+        Kref[np.ix_(dofs, dofs)] += Ke
+    np.testing.assert_allclose(K.toarray(), Kref, rtol=0, atol=1e-12 * abs(Kref).max())
+
+
+# ---------------------------------------------------------------------- loads
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_total_traction_load(cell):
+    tx, ty, qx, qy = 3.0e6, -2.0e6, 5.0e5, 7.0e5
+    S = two_blocks(nx=6, ny=3, length=3.0, height=1.0, cell=cell,
+                   tractions1={"right1": (tx, ty)}, tractions2={23: (qx, qy), "top1": (0.0, -1.0)})
+    f1, f2 = S.loads_numpy()
+    comp = S.geometry.dof_comp
+    # right edges have length 1 and no clamped node
+    assert f1[comp == 0].sum() == pytest.approx(tx * 1.0, rel=1e-12)
+    assert f1[comp == 1].sum() == pytest.approx(ty * 1.0, rel=1e-12)
+    # f2: right2 fully + top1 minus the share of its clamped corner node (h/2 of length 3 - h)
+    assert f2[comp == 0].sum() == pytest.approx(qx, rel=1e-12)
+    assert f2[comp == 1].sum() == pytest.approx(qy - 1.0 * (3.0 - 0.25), rel=1e-12)
+    # the traction on right1 goes to body-1 nodes on x = 3 only
+    pts = S.geometry.points[S.geometry.dof_node]
+    assert np.all(np.isclose(pts[f1 != 0, 0], 3.0))
+
+
+def test_body_force_load():
+    b = np.array([2.0e5, -3.0e5])
+    S = two_blocks(nx=6, ny=3, length=3.0, height=1.0, tractions1={}, tractions2={},
+                   body_force1={"body2": b}, body_force2=b)
+    f1, f2 = S.loads_numpy()
+    g = S.geometry
+    comp, node = g.dof_comp, g.dof_node
+    hx, H, L = 0.5, 1.0, 3.0
+    # Q1, uniform grid: the clamped left column of nodes takes hx * H / 2 of the area
+    free_area = L * H - hx * H / 2
+    on2 = np.isin(node, np.unique(g.cells[g.cell_body == 2]))
+    for k in range(2):
+        assert f1[comp == k].sum() == pytest.approx(b[k] * free_area, rel=1e-12)
+        assert np.all(f1[~on2] == 0)
+        assert f2[comp == k].sum() == pytest.approx(2 * b[k] * free_area, rel=1e-12)
+
+
+# ------------------------------------------------------------ other inputs
+def test_rigid_foundation():
+    S = two_blocks(nx=6, ny=2, foundation=True)
+    g = S.geometry
+    assert S.m == 6 and np.all(g.contact_nodes[:, 1] == -1)
+    assert np.all(g.cell_body == 1)
+    N = S.contact_maps()[0].toarray()
+    for i, (a, _) in enumerate(g.contact_nodes):
+        expected = np.zeros(S.n)
+        expected[dof(S, a, 1)] = -1.0
+        np.testing.assert_array_equal(N[i], expected)
+
+
+def test_msh_file_matches_model(tmp_path):
+    path = tmp_path / "blocks.msh"
+    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), str(path),
+                    "--nx", "5", "--ny", "2", "--cell", "triangle"], check=True)
+    kw = dict(tractions1={"top1": (1.0, -2.0)}, tractions2={"right2": (0.5, 0.0)}, friction=0.4)
+    A = assemble_contact_system(str(path), **kw)
+    B = two_blocks(nx=5, ny=2, cell="triangle", **kw)
+    for X, Y in zip(A.to_scipy(), B.to_scipy()):
+        X = X.toarray() if sp.issparse(X) else X
+        Y = Y.toarray() if sp.issparse(Y) else Y
+        # the .msh file stores coordinates in decimal: agreement up to rounding
+        np.testing.assert_allclose(X, Y, rtol=0, atol=1e-12 * np.abs(Y).max())
+    np.testing.assert_array_equal(A.geometry.cells, B.geometry.cells)
+    assert A.friction == 0.4 and A.rho == pytest.approx(B.rho, rel=1e-12)
+
+
+# ----------------------------------------------------------------- bad input
+def test_unknown_tag_lists_valid_tags():
+    with pytest.raises(GeometryError) as exc:
+        two_blocks(nx=3, ny=1, clamp=("left1", "nope"))
+    assert "'nope'" in str(exc.value) and "left2=24" in str(exc.value) and "top1=12" in str(exc.value)
+    with pytest.raises(GeometryError, match="99"):
+        two_blocks(nx=3, ny=1, tractions1={99: (1.0, 0.0)})
+    with pytest.raises(GeometryError, match="body1=1"):
+        two_blocks(nx=3, ny=1, body_force1={"body7": (1.0, 0.0)})
+
+
+def test_non_matching_interface():
+    with pytest.raises(GeometryError) as exc:
+        two_blocks(nx=4, ny=1, nx2=5)
+    msg = str(exc.value)
+    assert "non-matching" in msg
+    # contact1 node (0.75, 0): nearest contact2 node is (0.6, 0) -> distance 0.15
+    assert "(0.75, 0)" in msg and "distance 0.15" in msg
+
+
+def test_body_without_dirichlet_condition():
+    with pytest.raises(InputError) as exc:
+        two_blocks(nx=3, ny=1, clamp=("left1",))
+    msg = str(exc.value)
+    assert "body 2" in msg and "Dirichlet" in msg and "left2=24" in msg
+    with pytest.raises(InputError, match="body 1"):
+        two_blocks(nx=3, ny=1, clamp=("bottom2",))
+
+
+def test_bad_material_and_loads():
+    with pytest.raises(InputError, match="plane"):
+        two_blocks(nx=2, ny=1, plane="axisymmetric")
+    with pytest.raises(InputError, match="Poisson"):
+        two_blocks(nx=2, ny=1, nu=0.5)
+    with pytest.raises(InputError, match="2-vector"):
+        two_blocks(nx=2, ny=1, tractions1={"top1": (1.0, 2.0, 3.0)})
+    with pytest.raises(InputError, match="nx"):
+        two_blocks(nx=0)
+    with pytest.raises(GeometryError, match="no such mesh file"):
+        assemble_contact_system("/nonexistent/blocks.msh")
+
+
+# ----------------------------------------------------------------------- MPI
+def _mpirun():
+    return shutil.which("mpirun") or shutil.which("mpiexec")
+
+
+@pytest.mark.mpi
+def test_mpi_matches_serial(tmp_path):
+    mpirun = _mpirun()
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    sys.path.insert(0, HERE)
+    try:
+        import mpi_assembly_script as script
+    finally:
+        sys.path.remove(HERE)
+    out = tmp_path / "mpi.npz"
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PRTE_"))}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", PRTE_MCA_rmaps_default_mapping_policy=":oversubscribe",
+               PYTHONPATH=os.pathsep.join([ROOT] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    cmd = [mpirun, "-n", "2"]
+    version = subprocess.run([mpirun, "--version"], capture_output=True, text=True, env=env)
+    if "open mpi" in (version.stdout + version.stderr).lower() or "open-mpi" in (version.stdout + version.stderr).lower():
+        cmd.insert(1, "--allow-run-as-root")  # Open MPI refuses root otherwise (containers)
+    proc = subprocess.run(cmd + [sys.executable, os.path.join(HERE, "mpi_assembly_script.py"), str(out)],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    par = np.load(out)
+    assert int(par["size"]) == 2
+    for name, kwargs in script.cases().items():
+        owned = par[f"{name}:owned_cells"]
+        assert np.all(owned > 0), f"{name}: a rank owns no cell ({owned}), the test would not test MPI"
+        assert par[f"{name}:row_ranges"].tolist()[1] not in (0, par[f"{name}:K"].shape[0])
+        serial = script.gathered(two_blocks(**kwargs))
+        for key, ref in serial.items():
+            got = par[f"{name}:{key}"]
+            assert got.shape == ref.shape, (name, key)
+            scale = max(np.abs(ref).max(), 1e-300) if ref.size else 1.0
+            assert np.abs(got - ref).max(initial=0.0) <= 1e-12 * scale, (name, key)
