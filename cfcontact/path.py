@@ -525,6 +525,12 @@ def _select_toggle(system, y, sets):
     node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns (value, node, kind, Z_new).
     """
     a, bp, bm = indicators(system, y)
+    if np.any(sets.nu):
+        # The tangential sets of an open node do not change DirNeu's solution, so they go stale
+        # along a branch (T u may change sign).  Refresh them from y, so that closing the node
+        # (toggling I_nu) starts it slipping in the direction of its current T u.
+        tm = np.where(sets.nu, bm < 0, sets.tm)
+        sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
     best = None
     for kind, vals in (("nu", a), ("tp", bp), ("tm", bm)):
         for i in np.argsort(np.abs(vals), kind="stable"):
@@ -535,6 +541,73 @@ def _select_toggle(system, y, sets):
                 best = (float(abs(vals[i])), int(i), kind, new)
             break
     return best
+
+
+def _ranked_toggles(system, y, sets, limit=8):
+    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``."""
+    a, bp, bm = indicators(system, y)
+    vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])
+    out = []
+    for k in np.argsort(vals, kind="stable"):
+        kind, i = SET_NAMES[k // system.m], int(k % system.m)
+        new = toggle(sets, i, kind)
+        if not new.equivalent(sets, system.friction):
+            out.append((float(vals[k]), i, kind, new))
+            if len(out) >= limit:
+                break
+    return out
+
+
+def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
+    """The seed's branching algorithm, made robust.
+
+    First the seed's own choice (the minimizer of (17)): transversal if DirNeu(Z_new) at
+    alpha + s h_fail is a fixed point, else a fold if DirNeu(Z_new) at alpha is one.  When
+    neither holds (two indicators vanish within one step, or the minimizer is misleading),
+    the next candidates of (17) and pairs of the first ones are tried the same way, keeping
+    only continuations that join the old branch continuously.  Returns
+    (kind, node, set, Z_new, s_new, alpha_next, y_next, verified, changes) or None.
+    """
+    f1, f2 = system.loads_numpy()
+    load = lambda a: (1.0 - a) * f1 + a * f2  # noqa: E731
+    singles = _ranked_toggles(system, y, Z)
+    if not singles:
+        return None
+    a1 = alpha + s * h_fail
+    cands = [(c[3], [(c[1], c[2])]) for c in singles]
+    top = singles[:4]
+    for i in range(len(top)):
+        for j in range(i + 1, len(top)):
+            if top[i][1] == top[j][1] and top[i][2] == top[j][2]:
+                continue
+            Zp = toggle(top[i][3], top[j][1], top[j][2])
+            cands.append((Zp, [(top[i][1], top[i][2]), (top[j][1], top[j][2])]))
+    y_old_1 = None
+    for rank, (Zn, changes) in enumerate(cands):
+        node, kind = changes[0]
+        y1 = solver.solve(Zn, load(a1)) if lo <= a1 <= hi else None
+        y2 = None
+        if rank > 0:
+            # continuity with the old branch: the two affine branches meet at the transition
+            if y_old_1 is None:
+                y_old_1 = solver.solve(Z, load(a1)) if y1 is not None else None
+            y2 = solver.solve(Zn, load(alpha))
+            jump = np.linalg.norm(y2 - y)
+            scale = np.linalg.norm(y) + 1e-300
+            if y1 is not None and y_old_1 is not None:
+                slope_gap = np.linalg.norm((y1 - y2) - (y_old_1 - y)) / max(h_fail, 1e-300) * h_fail
+                if jump > 2.0 * slope_gap + 1e-9 * scale:
+                    continue
+        if y1 is not None and is_fixed_point(system, y1, Zn):
+            return ("transversal", node, kind, Zn, s, a1, y1, True, [{"node": n, "set": k} for n, k in changes])
+        if y2 is None:
+            y2 = solver.solve(Zn, load(alpha))
+        if is_fixed_point(system, y2, Zn):
+            return ("fold", node, kind, Zn, -s, alpha, y2, True, [{"node": n, "set": k} for n, k in changes])
+    Zn, changes = cands[0]
+    node, kind = changes[0]
+    return ("fold", node, kind, Zn, -s, alpha, solver.solve(Zn, load(alpha)), False,
+            [{"node": node, "set": kind}])
 
 
 def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:
@@ -615,20 +688,18 @@ def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=No
             path.events.append(PathEvent("max_transitions", alpha, f"transition cap {opts.max_transitions} reached",
                                          branch.index))
             return finish("max_transitions")
-        choice = _select_toggle(system, y, Z)
+        choice = _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi)
         if choice is None:
             path.events.append(PathEvent("no_indicator", alpha, "no set change available at the branch end",
                                          branch.index))
             return finish("stuck")
-        _, node, kind, Z_new = choice
+        tkind, node, kind, Z_new, s_new, a_next, y_next, verified, changes = choice
         a1 = alpha + s * h_fail
-        y1 = solver.solve(Z_new, (1.0 - a1) * f1 + a1 * f2)
-        if is_fixed_point(system, y1, Z_new) and lo <= a1 <= hi:
-            tkind, s_new, a_next, y_next = "transversal", s, a1, y1
-        else:
-            a2 = alpha
-            y2 = solver.solve(Z_new, (1.0 - a2) * f1 + a2 * f2)
-            tkind, s_new, a_next, y_next = "fold", -s, a2, y2
+        if not verified:
+            path.events.append(PathEvent(
+                "unverified_transition", alpha,
+                "no candidate set change gives a solution on either side; the seed's rule (a fold) was applied "
+                "with the smallest indicator", branch.index, {"node": node, "set": kind}))
         key = (Z_new.canonical_key(system.friction), s_new, round(a_next / max(opts.h_min, 1e-300)))
         last_seen[key] = last_seen.get(key, 0) + 1
         if last_seen[key] > 2:
@@ -639,7 +710,7 @@ def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=No
         branch.alpha_exit = alpha
         tr = Transition(len(path.transitions), alpha, tkind, node, kind, branch.index, len(path.branches),
                         bracket=(min(alpha, a1), max(alpha, a1)),
-                        changes=[{"node": node, "set": kind}])
+                        changes=changes)
         path.transitions.append(tr)
         log.info("alpha=%.8g %s transition: node %d set %s", alpha, tkind, node, kind)
         branch = path.add_branch(Z_new, s_new, *branch_endpoints(system, solver, Z_new), origin=tr.index,

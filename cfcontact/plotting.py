@@ -1,0 +1,285 @@
+"""Plots of a traced solution path (Matplotlib, no pyplot).
+
+Every function builds a :class:`matplotlib.figure.Figure` with an Agg canvas attached and
+returns it; nothing touches pyplot's global state or the process-wide backend, so the
+module works headless and inside other applications.  Write a figure with
+:func:`save_figure` (PNG or PDF, by extension).
+
+* :func:`plot_path` -- load parameter alpha (x axis) against one component of
+  y = (u, lam_n, lam_t), like the seed's Figure 6 (alpha against lam_n at one contact node),
+  with fold transitions marked (red triangles) and transversal transitions (small dots),
+  optionally with a zoom window (second panel or inset).
+* :func:`plot_multiplicity` -- number of distinct solutions of the path over alpha (steps).
+* :func:`default_component` -- the contact node whose lam_n varies most along the path.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Optional
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from cfcontact.errors import InputError
+
+__all__ = ["plot_path", "plot_multiplicity", "save_figure", "default_component", "component_label",
+           "path_curve", "SUPPORTED_FORMATS"]
+
+SUPPORTED_FORMATS = (".png", ".pdf")
+PATH_COLOR = "#1f4e9c"
+FOLD_COLOR = "#d62728"
+TRANSVERSAL_COLOR = "#2ca02c"
+
+
+def _new_figure(figsize, dpi, ncols=1):
+    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = [fig.add_subplot(1, ncols, k + 1) for k in range(ncols)]
+    return fig, axes
+
+
+def default_component(path) -> tuple:
+    """("lam_n", i) for the contact node i whose lam_n has the largest range (max - min) along the path.
+
+    Ties go to the lowest node index.  Raises :class:`InputError` for a path without points or
+    without contact nodes.
+    """
+    if path.m == 0:
+        raise InputError("the path has no contact nodes; give a component explicitly, e.g. ('u', 0)")
+    ys = path.ys
+    if ys.shape[0] == 0:
+        raise InputError("the path has no points to plot")
+    lam_n = ys[:, path.n:path.n + path.m]
+    spread = lam_n.max(axis=0) - lam_n.min(axis=0)
+    return ("lam_n", int(np.argmax(spread)))
+
+
+def component_label(path, component) -> str:
+    """Axis label of a component: "λν at node 12", "λτ at node 3", "u at DOF 7 (node 4, y)"."""
+    if isinstance(component, (int, np.integer)):
+        idx = path.component_index(int(component))
+        n, m = path.n, path.m
+        if idx < n:
+            component = ("u", idx)
+        elif idx < n + m:
+            component = ("lam_n", idx - n)
+        else:
+            component = ("lam_t", idx - n - m)
+    name, i = component
+    if name == "lam_n":
+        return f"λν at node {i}"
+    if name == "lam_t":
+        return f"λτ at node {i}"
+    geom = getattr(path, "geometry", None)
+    if geom is not None and 0 <= i < len(geom.dof_node):
+        return f"u at DOF {i} (node {int(geom.dof_node[i])}, {'xy'[int(geom.dof_comp[i])]})"
+    return f"u at DOF {i}"
+
+
+def _resolve_component(path, component):
+    if component is None:
+        component = default_component(path)
+    elif isinstance(component, (int, np.integer)) and not isinstance(component, bool):
+        # a plain integer is an index of y (path.component_index validates it)
+        pass
+    elif isinstance(component, (tuple, list)) and len(component) == 2:
+        component = (str(component[0]), int(component[1]))
+    else:
+        raise InputError(f"component must be ('lam_n', i), ('lam_t', i), ('u', dof) or an index of y, "
+                         f"got {component!r}")
+    return component, path.component_index(component)
+
+
+def path_curve(path, component=None):
+    """(alphas, values, branch) of the stored points in path order for one component.
+
+    Branches are affine in alpha, so the polyline through the stored points is the exact
+    path between points of one branch (the exact method stores just entry and exit points).
+    """
+    _, idx = _resolve_component(path, component)
+    ys = path.ys
+    if ys.shape[0] == 0:
+        raise InputError("the path has no points to plot")
+    return path.alphas, ys[:, idx], path.point_branch
+
+
+def _transition_points(path, idx, kind):
+    a, v = [], []
+    for t in path.transitions:
+        if t.kind != kind:
+            continue
+        alpha = float(t.alpha)
+        value = float(path.branch_y(t.from_branch, alpha)[idx])
+        a.append(alpha)
+        v.append(value)
+    return np.asarray(a, dtype=float), np.asarray(v, dtype=float)
+
+
+def _clip_range(alphas, values, lo, hi):
+    """Values of the polyline inside lo <= alpha <= hi (vertices inside + crossings of lo, hi)."""
+    out = list(values[(alphas >= lo) & (alphas <= hi)])
+    for k in range(len(alphas) - 1):
+        a0, a1 = alphas[k], alphas[k + 1]
+        if a0 == a1:
+            continue
+        for edge in (lo, hi):
+            if min(a0, a1) < edge < max(a0, a1):
+                s = (edge - a0) / (a1 - a0)
+                out.append(values[k] + s * (values[k + 1] - values[k]))
+    return np.asarray(out, dtype=float)
+
+
+def _zoom_limits(zoom, alphas, values):
+    if zoom is None:
+        return None
+    z = tuple(float(x) for x in zoom)
+    if len(z) not in (2, 4):
+        raise InputError(f"zoom must be (alpha_lo, alpha_hi) or (alpha_lo, alpha_hi, value_lo, value_hi), got {zoom!r}")
+    if not all(np.isfinite(z)) or not z[0] < z[1] or (len(z) == 4 and not z[2] < z[3]):
+        raise InputError(f"zoom window is empty or not finite: {zoom!r}")
+    if len(z) == 4:
+        return z
+    inside = _clip_range(alphas, values, z[0], z[1])
+    if inside.size == 0:
+        raise InputError(f"the path has no points with {z[0]} <= α <= {z[1]}; give value limits explicitly")
+    vlo, vhi = float(inside.min()), float(inside.max())
+    pad = 0.08 * (vhi - vlo) if vhi > vlo else 0.05 * max(abs(vhi), 1e-12)
+    return (z[0], z[1], vlo - pad, vhi + pad)
+
+
+def _draw_path(ax, alphas, values, fa, fv, ta, tv, mark_folds, mark_transitions, linewidth, markersize):
+    ax.plot(alphas, values, "-", color=PATH_COLOR, lw=linewidth, label="solution path", gid="path")
+    if mark_transitions and ta.size:
+        ax.plot(ta, tv, "o", ls="none", color=TRANSVERSAL_COLOR, ms=0.6 * markersize,
+                label="transversal transition", gid="transitions", zorder=3)
+    if mark_folds and fa.size:
+        ax.plot(fa, fv, "^", ls="none", color=FOLD_COLOR, ms=markersize, label="fold", gid="folds", zorder=4)
+
+
+def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True, mark_transitions: bool = True,
+              title: Optional[str] = None, xlabel: str = "α", ylabel: Optional[str] = None,
+              figsize=(8.0, 4.5), dpi: int = 100, zoom_style: str = "panel", legend: bool = True,
+              linewidth: float = 1.2, markersize: float = 7.0) -> Figure:
+    """α (x axis) against one component of the solution along the path (the seed's Figure 6).
+
+    Parameters
+    ----------
+    path : SolutionPath
+    component : ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y; default
+        :func:`default_component` (the contact node whose λν varies most).
+    ax : an existing Matplotlib Axes to draw into (its figure is returned); default a new Figure.
+    zoom : (alpha_lo, alpha_hi[, value_lo, value_hi]) -- adds a zoom window: a second panel
+        (``zoom_style="panel"``, new figures only) or an inset (``zoom_style="inset"``, or
+        always when ``ax`` is given); the value range defaults to the curve's range there.
+    mark_folds : red triangles at fold transitions (Line2D with gid "folds", one marker per fold).
+    mark_transitions : small green dots at transversal transitions (gid "transitions").
+    title, xlabel, ylabel : labels (ylabel default e.g. "λν at node 12").
+    figsize, dpi : size of a new figure in inches and dots per inch (PNG pixels = figsize * dpi).
+    """
+    if zoom_style not in ("panel", "inset"):
+        raise InputError(f"zoom_style must be 'panel' or 'inset', got {zoom_style!r}")
+    component, idx = _resolve_component(path, component)
+    alphas, values, _ = path_curve(path, component)
+    fa, fv = _transition_points(path, idx, "fold")
+    ta, tv = _transition_points(path, idx, "transversal")
+    limits = _zoom_limits(zoom, alphas, values)
+
+    if ax is None:
+        panel = limits is not None and zoom_style == "panel"
+        fig, axes = _new_figure(figsize, dpi, ncols=2 if panel else 1)
+        ax = axes[0]
+        zax = axes[1] if panel else None
+    else:
+        fig = ax.figure
+        zax = None
+    if ylabel is None:
+        ylabel = component_label(path, component)
+
+    _draw_path(ax, alphas, values, fa, fv, ta, tv, mark_folds, mark_transitions, linewidth, markersize)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    if title is not None:
+        ax.set_title(title)
+    if legend and (mark_folds and fa.size or mark_transitions and ta.size):
+        ax.legend(loc="best", fontsize="small")
+
+    if limits is not None:
+        if zax is None:
+            zax = ax.inset_axes([0.58, 0.08, 0.38, 0.38])
+            zax.tick_params(labelsize="x-small")
+        else:
+            zax.set_xlabel(xlabel)
+            zax.set_title(f"zoom: {limits[0]:.4g} ≤ α ≤ {limits[1]:.4g}", fontsize="medium")
+            zax.grid(True, alpha=0.3)
+        _draw_path(zax, alphas, values, fa, fv, ta, tv, mark_folds, mark_transitions, linewidth, markersize)
+        zax.set_xlim(limits[0], limits[1])
+        zax.set_ylim(limits[2], limits[3])
+        ax.indicate_inset_zoom(zax, edgecolor="0.3")
+    return fig
+
+
+def _multiplicity_steps(path, alpha_range=None):
+    ends = sorted({float(e) for b in path.branches for e in path.branch_extent(b) if np.isfinite(e)})
+    if alpha_range is not None:
+        lo, hi = alpha_range
+        ends = sorted({lo, hi, *[e for e in ends if lo < e < hi]})
+    edges, counts = [], []
+    for a, b in zip(ends[:-1], ends[1:]):
+        if b <= a:
+            continue
+        edges.append(a)
+        counts.append(path.multiplicity(0.5 * (a + b)))
+    if not counts:
+        raise InputError("the path covers no α interval; nothing to plot")
+    edges.append(ends[-1])
+    edges = np.asarray(edges, dtype=float)
+    counts = np.asarray(counts, dtype=int)
+    # merge equal neighbours
+    keep = np.concatenate([[True], counts[1:] != counts[:-1]])
+    return np.concatenate([edges[:-1][keep], edges[-1:]]), counts[keep]
+
+
+def plot_multiplicity(path, ax=None, title: Optional[str] = None, xlabel: str = "α",
+                      ylabel: str = "number of solutions", alpha_range=None, figsize=(8.0, 3.0),
+                      dpi: int = 100, color: str = PATH_COLOR) -> Figure:
+    """Multiplicity of the path (number of distinct solutions, :meth:`SolutionPath.multiplicity`) over α.
+
+    The multiplicity is constant between consecutive branch ends, so it is evaluated once per
+    such interval (at its midpoint) and drawn as steps (``Axes.stairs``, gid "multiplicity").
+    Values exactly at branch ends (transition points) are not shown.
+    """
+    edges, counts = _multiplicity_steps(path, alpha_range)
+    if ax is None:
+        fig, (ax,) = _new_figure(figsize, dpi)
+    else:
+        fig = ax.figure
+    ax.stairs(counts, edges, color=color, lw=1.5, baseline=None, gid="multiplicity")
+    ax.set_xlim(edges[0], edges[-1])
+    top = int(counts.max())
+    ax.set_ylim(-0.2 if counts.min() == 0 else 0.5, top + 0.5)
+    ax.set_yticks(range(0 if counts.min() == 0 else 1, top + 1))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+    if title is not None:
+        ax.set_title(title)
+    return fig
+
+
+def save_figure(fig: Figure, path, dpi: Optional[float] = None) -> str:
+    """Write ``fig`` to ``path`` as PNG or PDF (chosen by the extension); parent directories are created.
+
+    The PNG has exactly figsize * dpi pixels (no tight bounding box).  Returns the path written.
+    """
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in SUPPORTED_FORMATS:
+        raise InputError(f"unsupported figure format {ext or '(no extension)'!r} for {path!r}; "
+                         f"use one of {', '.join(SUPPORTED_FORMATS)}")
+    parent = os.path.dirname(os.path.abspath(path))
+    os.makedirs(parent, exist_ok=True)
+    fig.savefig(path, format=ext[1:], dpi=fig.dpi if dpi is None else dpi)
+    return path
