@@ -100,6 +100,7 @@ class PathPoint:
     alpha: float
     branch: int
     solution: Solution
+    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path (seed)
 
 
 @dataclass
@@ -201,6 +202,7 @@ class SolutionPath:
         self.events: list = []
         self.status = "running"
         self.stats: dict = {}
+        self.resume_state: Optional[dict] = None  # seed loop state at the end (trace_path(resume=...))
         self._Y: dict = {}  # branch index -> (Y1, Y2)
 
     # ------------------------------------------------------------- building
@@ -454,7 +456,7 @@ def _json_default(o):
 
 # ====================================================================== tracing
 def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, method: str = "seed",
-               y0=None, options: Optional[PathOptions] = None, solver=None, **kwargs) -> SolutionPath:
+               y0=None, options: Optional[PathOptions] = None, solver=None, resume=None, **kwargs) -> SolutionPath:
     """Follow the solution path of (4) along f(alpha) from alpha_start towards alpha_end.
 
     Parameters
@@ -462,6 +464,10 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     method : "seed" (the seed's Section 4) or "exact" (exact piecewise-affine continuation)
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``)
+    resume : continue a seed run stopped by its callback instead of starting anew: a dict
+        ``{"path": SolutionPath, "state": path.resume_state}`` (the stopped run's path, possibly
+        saved and loaded, and the loop state it left in ``path.resume_state``).  New points are
+        appended to that path; the result equals an uninterrupted run.
     """
     if method not in ("seed", "exact"):
         raise InputError(f"unknown method {method!r}; valid: 'seed', 'exact'")
@@ -477,10 +483,12 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
         opts = PathOptions(**{**asdict(PathOptions()), **{k: getattr(opts, k) for k in valid}, **kwargs})
     opts.validate()
     if method == "exact":
+        if resume is not None:
+            raise InputError("resume is supported for method 'seed' only")
         from cfcontact.exact import trace_exact
 
         return trace_exact(system, alpha_start, alpha_end, y0=y0, options=opts, solver=solver)
-    return _trace_seed(system, alpha_start, alpha_end, y0, opts, solver)
+    return _trace_seed(system, alpha_start, alpha_end, y0, opts, solver, resume)
 
 
 def _alpha_range(opts, alpha_start, alpha_end):
@@ -546,6 +554,10 @@ def _select_toggle(system, y, sets):
 def _ranked_toggles(system, y, sets, limit=8):
     """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``."""
     a, bp, bm = indicators(system, y)
+    if np.any(sets.nu):
+        # refresh the stale tangential sets of open nodes from y (see _select_toggle)
+        tm = np.where(sets.nu, bm < 0, sets.tm)
+        sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
     vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])
     out = []
     for k in np.argsort(vals, kind="stable"):
@@ -624,39 +636,72 @@ def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:
     return InactiveSets(nu, tp, tm)
 
 
-def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=None) -> SolutionPath:
+def _resume_seed(system, alpha_start, alpha_end, resume):
+    """(path, h, steps, last_seen, done, stats before) of a seed run stopped by its callback."""
+    try:
+        path, state = resume["path"], resume["state"]
+    except (TypeError, KeyError):
+        raise InputError("resume must be a dict {'path': SolutionPath, 'state': path.resume_state}") from None
+    if not isinstance(path, SolutionPath) or not isinstance(state, dict):
+        raise InputError("resume must be a dict {'path': SolutionPath, 'state': path.resume_state}")
+    if path.method != "seed" or not path.branches or not path._alphas:
+        raise InputError(f"cannot resume from {path!r}: not a started seed path")
+    if (path.n, path.m) != (system.n, system.m):
+        raise InputError(f"cannot resume: the path has n={path.n}, m={path.m}, the system n={system.n}, m={system.m}")
+    if (path.alpha_start, path.alpha_end) != (float(alpha_start), float(alpha_end)):
+        raise InputError(f"cannot resume: the path runs from {path.alpha_start} to {path.alpha_end}, "
+                         f"not from {alpha_start} to {alpha_end}")
+    last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c) for k, sg, r, c in state.get("last_seen", [])}
+    before = {k: v for k, v in path.stats.items() if isinstance(v, (int, float))}
+    return path, float(state["h"]), int(state["steps"]), last_seen, bool(state.get("done", False)), before
+
+
+def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=None, resume=None) -> SolutionPath:
     solver = solver or get_solver(system)
     t0 = time.perf_counter()
     stats0 = solver.stats.as_dict()
     lo, hi = _alpha_range(opts, alpha_start, alpha_end)
-    s = 1 if alpha_end > alpha_start else -1
-    path = SolutionPath.for_system(system, "seed", alpha_start, alpha_end, opts.to_dict())
-    start = start_point(system, alpha_start, y0, opts, solver)
-    Z, alpha, y = start.sets, float(alpha_start), start.y
-    branch = path.add_branch(Z, s, *branch_endpoints(system, solver, Z), alpha_enter=alpha)
-    path.add_point(branch, alpha, y)
-    h = opts.h0
-    steps = 0
-    last_seen = {}
     f1, f2 = system.loads_numpy()
+    if resume is None:
+        s = 1 if alpha_end > alpha_start else -1
+        path = SolutionPath.for_system(system, "seed", alpha_start, alpha_end, opts.to_dict())
+        start = start_point(system, alpha_start, y0, opts, solver)
+        Z, alpha, y = start.sets, float(alpha_start), start.y
+        branch = path.add_branch(Z, s, *branch_endpoints(system, solver, Z), alpha_enter=alpha)
+        path.add_point(branch, alpha, y)
+        h = opts.h0
+        steps = 0
+        last_seen = {}
+        done, stats_before = False, {}
+    else:  # continue exactly where the stopped run's callback stopped it
+        path, h, steps, last_seen, done, stats_before = _resume_seed(system, alpha_start, alpha_end, resume)
+        branch = path.branches[-1]
+        Z, s = branch.sets, branch.orientation
+        alpha, y = path._alphas[-1], path._ys[-1]
+        path.status = "running"
 
-    def finish(status):
+    def finish(status, done=False):
         branch.alpha_exit = alpha
         path.status = status
         st = solver.stats.as_dict()
-        path.stats = {k: st[k] - stats0[k] for k in st}
-        path.stats["wall_time"] = time.perf_counter() - t0
+        path.stats = {k: st[k] - stats0[k] + stats_before.get(k, 0) for k in st}
+        path.stats["wall_time"] = time.perf_counter() - t0 + stats_before.get("wall_time", 0.0)
+        # loop state for trace_path(resume=...); done: the run had ended when the callback stopped it
+        path.resume_state = {"h": h, "steps": steps, "done": bool(done),
+                             "last_seen": [[k.hex(), sg, r, c] for (k, sg, r), c in last_seen.items()]}
         log.info("seed path: %s", path)
         return path
 
     def emit(point_index):
         if opts.callback is not None:
             sol = Solution.from_y(system, path._ys[point_index], path._alphas[point_index], sets=Z)
-            if opts.callback(PathPoint(point_index, path._alphas[point_index], branch.index, sol)):
+            if opts.callback(PathPoint(point_index, path._alphas[point_index], branch.index, sol, path)):
                 return True
         return False
 
-    if emit(0):
+    if resume is not None and done:
+        return finish("completed")
+    if resume is None and emit(0):
         return finish("stopped by callback")
     while True:
         steps += 1
@@ -675,7 +720,7 @@ def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=No
             idx = path.add_point(branch, alpha, y)
             h = min(opts.c_p * h, opts.h_max)
             if emit(idx):
-                return finish("stopped by callback")
+                return finish("stopped by callback", done=clipped)
             if clipped:
                 return finish("completed")
             continue
@@ -718,6 +763,6 @@ def _trace_seed(system, alpha_start, alpha_end, y0, opts: PathOptions, solver=No
         Z, s, alpha, y = Z_new, s_new, a_next, y_next
         idx = path.add_point(branch, alpha, y)
         if emit(idx):
-            return finish("stopped by callback")
+            return finish("stopped by callback", done=tkind == "transversal" and (alpha >= hi or alpha <= lo))
         if tkind == "transversal" and (alpha >= hi or alpha <= lo):
             return finish("completed")

@@ -1,0 +1,537 @@
+"""Exact piecewise-affine path following (no step sizes).
+
+On a branch with inactive sets Z fixed, y(alpha) = (1 - alpha) Y1 + alpha Y2 exactly, with
+Y1 = DirNeu(Z, f1), Y2 = DirNeu(Z, f2).  The three indicator vectors of (17)
+
+    a = lam_n + rho N u,   bp = lam_t + rho T u - F lam_n,   bm = lam_t + rho T u + F lam_n
+
+are linear in y, hence affine in alpha along the branch.  Z is consistent (Remark 3.1) as long
+as every indicator keeps the sign Z requires.  Per node state (``ssnm.STATE_NAMES``) the
+required signs ("constraints" c >= 0, closed) are
+
+    open   : -a >= 0                         (lam_n = lam_t = 0; the sign of T u is irrelevant)
+    stick  :  a >= 0, -bp >= 0, bm >= 0
+    slip+  :  a >= 0,  bp >= 0              (bm = bp + 2 F a >= 0 follows)
+    slip-  :  a >= 0, -bm >= 0              (bp = bm - 2 F a <= 0 follows)
+    F = 0  : slip+ and slip- coincide (tangentially free: a >= 0 only)
+
+The branch is left at the first root (in the orientation s) of a constraint that decreases
+(ratio test).  At that transition point y*, the states of the nodes whose constraints vanish
+("involved" nodes) are re-decided: a state is admissible at y* iff its constraints hold at y*
+(closed signs) -- which is equivalent to y* = DirNeu(Z', f(alpha*)), so every admissible
+candidate Z' continues y continuously.  A candidate branch y'(alpha) (2 solves) continues the
+path in the direction d = +-1 iff each of its constraints is either positive at alpha* or
+vanishes there with d * slope > 0 (or vanishes identically).  This is decided from values and
+slopes only, with a relative tolerance ``tie_rtol`` on the indicator scale for "vanishes";
+there is no step size.  Exactly one continuation: a "transversal" transition (d = s) or a
+"fold" (d = -s).  Several: a branch point (a ``PathEvent("branch_point")`` lists every
+alternative; :func:`follow_alternative` follows another one later, the path being a tree of
+branches linked by ``Branch.parent`` / ``Branch.origin``).  None: ``PathEvent("dead_end")`` and
+status "stuck".  Revisiting the same (Z, s, alpha): ``PathEvent("cycling")``.
+
+Cost: two solves per candidate branch (one factorization of J(Z) with the default PETSc
+backend; with :class:`cfcontact.condensed.CondensedSolver` one factorization of K in total and
+dense 2m x 2m solves per branch).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import time
+from typing import Optional
+
+import numpy as np
+
+from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
+from cfcontact.path import (
+    SET_NAMES,
+    PathEvent,
+    PathOptions,
+    PathPoint,
+    SolutionPath,
+    Transition,
+    _alpha_range,
+    branch_endpoints,
+    start_point,
+)
+from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
+from cfcontact.system import ContactSystem
+
+log = logging.getLogger(__name__)
+
+#: Default relative tolerance deciding that an indicator "vanishes" (relative to the largest
+#: indicator magnitude of the branch) or that a slope is zero.
+TIE_RTOL = 1e-10
+#: At most this many candidate set combinations are examined at one transition point.
+MAX_CANDIDATES = 4096
+#: When SSNM cannot find the start solution, problems with at most this many contact nodes are
+#: started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
+START_ENUMERATION_MAX_NODES = 8
+
+OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
+# constraints per state: (indicator 0=a, 1=bp, 2=bm ; sign) meaning sign * indicator >= 0
+_CONS = {
+    (OPEN, False): ((0, -1.0),),
+    (STICK, False): ((0, 1.0), (1, -1.0), (2, 1.0)),
+    (SLIP_P, False): ((0, 1.0), (1, 1.0)),
+    (SLIP_M, False): ((0, 1.0), (2, -1.0)),
+    # F = 0 at the node: tangentially free (slip+ == slip-), stick only with lam_t = 0
+    (OPEN, True): ((0, -1.0),),
+    (STICK, True): ((0, 1.0), (1, -1.0), (2, 1.0)),
+    (SLIP_P, True): ((0, 1.0),),
+    (SLIP_M, True): ((0, 1.0),),
+}
+
+
+def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
+    """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices:
+    an open node is tangentially free, a node with F = 0 that is tangentially free is slip+."""
+    F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
+    codes = sets.state_codes().astype(np.int8)  # tp & tm -> 2 (slip+)
+    codes = np.where((codes == SLIP_M) & (F == 0.0), SLIP_P, codes)
+    return codes.astype(np.int8)
+
+
+def sets_from_codes(codes) -> InactiveSets:
+    return InactiveSets.from_states(np.asarray(codes, dtype=int))
+
+
+def state_constraints(codes, F0) -> tuple:
+    """(flat indicator index ind*m + node, sign, node) of every constraint of the states ``codes``."""
+    m = len(codes)
+    idx, sgn, nodes = [], [], []
+    for i, c in enumerate(codes):
+        for ind, sg in _CONS[(int(c), bool(F0[i]))]:
+            idx.append(ind * m + i)
+            sgn.append(sg)
+            nodes.append(i)
+    return np.asarray(idx, dtype=np.int64), np.asarray(sgn, dtype=float), np.asarray(nodes, dtype=np.int64)
+
+
+class _Line:
+    """One candidate branch: sets, y(alpha) = (1-alpha) Y1 + alpha Y2, its constraints.
+
+    The multipliers (lam_n, lam_t) at alpha = 0 and 1 and the indicators are always at hand;
+    the whole Y1, Y2 (with u) are formed when first needed (with the condensed backend that
+    costs O(n m), so only branches the path takes pay it)."""
+
+    def __init__(self, codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full):
+        self.codes, self.sets = codes, sets
+        self.lam1, self.lam2 = lam1, lam2
+        self.g1, self.g2 = g1, g2
+        self.c1, self.c2 = csgn * g1[cidx], csgn * g2[cidx]  # constraint values at alpha = 0 and 1
+        self.cidx, self.cnode = cidx, cnode
+        self.gmax1 = float(np.abs(g1).max(initial=0.0))
+        self.gmax2 = float(np.abs(g2).max(initial=0.0))
+        self._full = full
+        self._Y = None
+
+    @property
+    def Y1(self):
+        if self._Y is None:
+            self._Y = self._full()
+        return self._Y[0]
+
+    @property
+    def Y2(self):
+        if self._Y is None:
+            self._Y = self._full()
+        return self._Y[1]
+
+    def y(self, alpha):
+        return (1.0 - alpha) * self.Y1 + alpha * self.Y2
+
+    def lam(self, alpha):
+        return (1.0 - alpha) * self.lam1 + alpha * self.lam2
+
+    def indicators(self, alpha):
+        return (1.0 - alpha) * self.g1 + alpha * self.g2
+
+    def values(self, alpha):
+        return (1.0 - alpha) * self.c1 + alpha * self.c2
+
+    @property
+    def slopes(self):
+        return self.c2 - self.c1
+
+    def tol_v(self, alpha, rtol):
+        return rtol * (abs(1.0 - alpha) * self.gmax1 + abs(alpha) * self.gmax2) + 1e-300
+
+    def tol_s(self, rtol):
+        return rtol * (self.gmax1 + self.gmax2) + 1e-300
+
+
+class _Context:
+    def __init__(self, system, solver, opts, lo, hi, rtol):
+        self.system, self.solver, self.opts = system, solver, opts
+        self.lo, self.hi, self.rtol = lo, hi, rtol
+        self.Fv = system.friction_vector
+        self.F0 = self.Fv == 0.0
+        self.m = system.m
+        self.f1, self.f2 = system.loads_numpy()
+        self.visited: dict = {}
+        self.lines: dict = {}  # canonical key -> _Line (re-used at branch points / alternatives)
+
+    def _condensed_indicators(self, lam, w):
+        m, rho = self.m, self.system.rho
+        Bu = w - self.solver.S @ lam
+        b = lam[m:] + rho * Bu[m:]
+        return np.concatenate([lam[:m] + rho * Bu[:m], b - self.Fv * lam[:m], b + self.Fv * lam[:m]])
+
+    def key(self, codes):
+        return np.asarray(codes, dtype=np.int8).tobytes()
+
+    def line(self, codes) -> _Line:
+        codes = np.asarray(codes, dtype=np.int8)
+        k = self.key(codes)
+        if k in self.lines:
+            return self.lines[k]
+        sets = sets_from_codes(codes)
+        system, solver, m, n = self.system, self.solver, self.m, self.system.n
+        cidx, csgn, cnode = state_constraints(codes, self.F0)
+        if hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
+            # condensed backend: multipliers and indicators in O(m^2), u only when needed
+            (x1, w1), (x2, w2) = solver.load_data(self.f1), solver.load_data(self.f2)
+            lam1, lam2 = solver.multipliers(sets, w1), solver.multipliers(sets, w2)
+            g1, g2 = self._condensed_indicators(lam1, w1), self._condensed_indicators(lam2, w2)
+
+            def full(x1=x1, x2=x2, lam1=lam1, lam2=lam2):
+                return (np.concatenate([solver.displacement(x1, self.f1, lam1), lam1]),
+                        np.concatenate([solver.displacement(x2, self.f2, lam2), lam2]))
+
+            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full)
+        else:
+            Y1, Y2 = branch_endpoints(system, solver, sets)
+            g1 = np.concatenate(indicators(system, Y1))
+            g2 = np.concatenate(indicators(system, Y2))
+            ln = _Line(codes, sets, Y1[n:], Y2[n:], g1, g2, cidx, csgn, cnode, lambda: (Y1, Y2))
+        if len(self.lines) > 256:
+            self.lines.clear()
+        self.lines[k] = ln
+        return ln
+
+
+# ------------------------------------------------------------------ ratio test
+def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
+    """First alpha (from alpha0 in direction s) where a decreasing constraint of ln vanishes.
+
+    Returns (alpha_exit, vanishing constraint positions) or (None, None) when no constraint
+    vanishes before the end of the alpha range."""
+    sl = ln.slopes
+    tol_s = ln.tol_s(ctx.rtol)
+    dec = s * sl < -tol_s
+    if not np.any(dec):
+        return None, None
+    c1, c2 = ln.c1[dec], ln.c2[dec]
+    roots = c1 / (c1 - c2)
+    dist = np.maximum(s * (roots - alpha0), 0.0)
+    j = int(np.argmin(dist))
+    a_star = alpha0 + s * dist[j] if dist[j] == 0.0 else float(roots[j])
+    bound = ctx.hi if s > 0 else ctx.lo
+    if s * (a_star - bound) >= 0:
+        return None, None
+    vals = ln.values(a_star)
+    vanish = np.flatnonzero(np.abs(vals) <= ln.tol_v(a_star, ctx.rtol))
+    first = np.flatnonzero(dec)[j]
+    if first not in vanish:
+        vanish = np.union1d(vanish, [first])
+    return float(a_star), vanish
+
+
+def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
+    """States of ``node`` whose (closed) constraints hold at the indicator values g_star (3m)."""
+    m = ctx.m
+    out = []
+    for st in (OPEN, STICK, SLIP_P, SLIP_M):
+        if st == SLIP_M and ctx.F0[node]:
+            continue  # same as slip+ (free) when F = 0
+        if all(sg * g_star[ind * m + node] >= -tol for ind, sg in _CONS[(st, bool(ctx.F0[node]))]):
+            out.append(st)
+    return out
+
+
+def _valid_direction(ctx: _Context, ln: _Line, alpha: float, d: int) -> bool:
+    """Is the branch ln consistent on [alpha, alpha + d*eps] for some eps > 0 (decided from values and slopes)?"""
+    vals = ln.values(alpha)
+    sl = ln.slopes
+    tv, ts = ln.tol_v(alpha, ctx.rtol), ln.tol_s(ctx.rtol)
+    if np.any(vals < -tv):
+        return False
+    zero = vals <= tv
+    ok = (~zero) | (d * sl > ts) | (np.abs(sl) <= ts)
+    return bool(np.all(ok))
+
+
+def _same_line(a: _Line, b: _Line, rtol=1e-10) -> bool:
+    """Same y(alpha) (the multipliers determine u for a given load)."""
+    sc = max(np.abs(a.lam1).max(initial=0), np.abs(a.lam2).max(initial=0), 1e-300)
+    return bool(np.abs(a.lam1 - b.lam1).max(initial=0) <= rtol * sc
+                and np.abs(a.lam2 - b.lam2).max(initial=0) <= rtol * sc)
+
+
+def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tuple:
+    """Every (line, direction) continuing the path at the transition point alpha of branch (ln, s)."""
+    m = ctx.m
+    lam_star = ln.lam(alpha)
+    g_star = ln.indicators(alpha)  # indicators are linear in y
+    tol = ln.tol_v(alpha, ctx.rtol)
+    nodes = sorted({int(ln.cnode[k]) for k in vanish})
+    choices = [_admissible_states(ctx, g_star, i, tol) for i in nodes]
+    total = int(np.prod([len(c) for c in choices])) if choices else 0
+    info = {"nodes": nodes, "admissible": {i: [STATE_NAMES[c] for c in ch] for i, ch in zip(nodes, choices)},
+            "candidates": total}
+    if total > MAX_CANDIDATES:
+        return None, info
+    combos = list(itertools.product(*choices))
+    # fewest changed nodes first (deterministic preference)
+    combos.sort(key=lambda cb: sum(int(c != ln.codes[i]) for i, c in zip(nodes, cb)))
+    out = []
+    lsc = max(np.abs(lam_star).max(initial=0), ln.tol_v(alpha, 1.0), 1e-300)
+    for cb in combos:
+        codes = ln.codes.copy()
+        codes[nodes] = cb
+        if np.array_equal(codes, ln.codes):
+            continue
+        try:
+            cand = ctx.line(codes)
+        except SingularSystemError as exc:
+            log.info("alpha=%.12g: candidate %s skipped: %s", alpha, sets_from_codes(codes), exc)
+            continue
+        if np.abs(cand.lam(alpha) - lam_star).max(initial=0) > 1e-6 * lsc:
+            log.info("alpha=%.12g: candidate %s does not pass through the transition point; skipped",
+                     alpha, cand.sets)
+            continue
+        for d in (s, -s):
+            if d == -s and _same_line(cand, ln):
+                continue  # the incoming branch itself (equivalent sets)
+            if not _valid_direction(ctx, cand, alpha, d):
+                continue
+            if any(dd == d and _same_line(cand, other) for other, dd in out):
+                continue
+            out.append((cand, d))
+    return out, info
+
+
+# ---------------------------------------------------------------------- driver
+def _finish(path, solver, stats0, t0, status):
+    path.status = status
+    st = solver.stats.as_dict()
+    path.stats = {k: st[k] - stats0.get(k, 0) for k in st}
+    path.stats["wall_time"] = time.perf_counter() - t0
+    log.info("exact path: %s", path)
+    return path
+
+
+def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_enter, parent=None, origin=None,
+         budget=None) -> str:
+    """Follow the path from (ln, s) entered at alpha; appends to ``path``; returns the status."""
+    system, opts = ctx.system, ctx.opts
+    branch = path.add_branch(ln.sets, s, ln.Y1, ln.Y2, origin=origin, parent=parent, alpha_enter=alpha)
+    n_trans0 = len(path.transitions)
+
+    def emit(idx):
+        if opts.callback is None:
+            return False
+        sol = Solution.from_y(system, path._ys[idx], path._alphas[idx], sets=ln.sets)
+        return bool(opts.callback(PathPoint(idx, path._alphas[idx], branch.index, sol)))
+
+    idx = path.add_point(branch, alpha, y_enter)
+    if emit(idx):
+        branch.alpha_exit = alpha
+        return "stopped by callback"
+    while True:
+        key = (ctx.key(ln.codes), s)
+        seen = ctx.visited.setdefault(key, [])
+        if any(abs(alpha - a) <= 1e-12 * (1.0 + abs(alpha)) for a in seen):
+            path.events.append(PathEvent("cycling", alpha, f"branch {ln.sets} with orientation {s} entered again at "
+                                         f"alpha={alpha!r}: the path loops", branch.index,
+                                         {"sets": ln.sets.to_dict(), "orientation": s}))
+            branch.alpha_exit = alpha
+            return "cycling"
+        seen.append(alpha)
+        a_star, vanish = _exit(ctx, ln, alpha, s)
+        if a_star is None:
+            a_end = ctx.hi if s > 0 else ctx.lo
+            branch.alpha_exit = a_end
+            idx = path.add_point(branch, a_end, ln.y(a_end))
+            emit(idx)
+            return "completed"
+        branch.alpha_exit = a_star
+        path.add_point(branch, a_star, ln.y(a_star))
+        limit = opts.max_transitions if budget is None else budget
+        if len(path.transitions) - n_trans0 >= limit:
+            path.events.append(PathEvent("max_transitions", a_star, f"transition cap {limit} reached",
+                                         branch.index))
+            return "max_transitions"
+        conts, info = _continuations(ctx, ln, a_star, s, vanish)
+        vanishing = [{"node": int(ln.cnode[k]), "set": SET_NAMES[int(ln.cidx[k]) // ctx.m]} for k in vanish]
+        if conts is None:
+            path.events.append(PathEvent("degenerate", a_star, f"{info['candidates']} candidate set combinations at "
+                                         f"nodes {info['nodes']} (limit {MAX_CANDIDATES}); the transition is "
+                                         f"too degenerate to resolve", branch.index,
+                                         {"vanishing": vanishing, **_jsonable(info)}))
+            return "stuck"
+        if not conts:
+            path.events.append(PathEvent("dead_end", a_star, "no set combination continues the path at this "
+                                         "transition point (one-sided consistency fails in both directions)",
+                                         branch.index, {"vanishing": vanishing, **_jsonable(info)}))
+            return "stuck"
+        # prefer keeping the orientation, then folds; order within: fewest changed nodes
+        conts.sort(key=lambda cd: 0 if cd[1] == s else 1)
+        nxt, d = conts[0]
+        kind = "transversal" if d == s else "fold"
+        changes = []
+        for ch in vanishing:
+            i = ch["node"]
+            changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
+        for i in np.flatnonzero(nxt.codes != ln.codes):  # state changes at nodes whose own constraint did not vanish
+            if not any(c["node"] == int(i) for c in changes):
+                changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],
+                                "to": STATE_NAMES[int(nxt.codes[i])]})
+        tr = Transition(len(path.transitions), a_star, kind, changes[0]["node"], changes[0]["set"], branch.index,
+                        len(path.branches), bracket=(a_star, a_star), changes=changes)
+        if len(conts) > 1:
+            alts = [{"sets": c.sets.to_dict(), "states": c.sets.states(), "orientation": int(dd),
+                     "kind": "transversal" if dd == s else "fold", "alpha": a_star, "chosen": k == 0}
+                    for k, (c, dd) in enumerate(conts)]
+            path.events.append(PathEvent("branch_point", a_star, f"{len(conts)} branches leave the transition point; "
+                                         f"following the first (see data['alternatives'], follow_alternative)",
+                                         branch.index, {"alternatives": alts, "transition": tr.index,
+                                                        "vanishing": vanishing}))
+        path.transitions.append(tr)
+        log.info("alpha=%.12g %s transition: %s", a_star, kind, changes)
+        parent_idx, ln, s, alpha = branch.index, nxt, d, a_star
+        branch = path.add_branch(ln.sets, s, ln.Y1, ln.Y2, origin=tr.index, parent=parent_idx, alpha_enter=alpha)
+        idx = path.add_point(branch, alpha, ln.y(alpha))
+        if emit(idx):
+            branch.alpha_exit = alpha
+            return "stopped by callback"
+
+
+def _jsonable(info):
+    return {"nodes": list(map(int, info["nodes"])), "candidates": int(info["candidates"]),
+            "admissible": {str(k): v for k, v in info["admissible"].items()}}
+
+
+def _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol):
+    if not isinstance(system, ContactSystem):
+        raise InputError(f"system must be a ContactSystem, got {type(system).__name__}")
+    if not (np.isfinite(alpha_start) and np.isfinite(alpha_end)) or alpha_start == alpha_end:
+        raise InputError(f"alpha range is empty: alpha_start={alpha_start}, alpha_end={alpha_end} "
+                         f"(need two different finite numbers)")
+    if not (0 < tie_rtol < 1e-2):
+        raise InputError(f"tie_rtol must be in (0, 1e-2), got {tie_rtol!r}")
+    opts = options or PathOptions()
+    opts.validate()
+    lo, hi = _alpha_range(opts, alpha_start, alpha_end)
+    solver = solver or get_solver(system)
+    return _Context(system, solver, opts, lo, hi, float(tie_rtol)), opts
+
+
+def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, y0=None,
+                options: Optional[PathOptions] = None, solver=None, tie_rtol: float = TIE_RTOL,
+                start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None) -> SolutionPath:
+    """Exact piecewise-affine continuation of the solution path from alpha_start towards alpha_end.
+
+    Parameters
+    ----------
+    y0 : start solution or guess for SSNM at alpha_start (ignored with ``start_sets``)
+    options : PathOptions (alpha_min/alpha_max, max_transitions, callback, tol/max_iter of the
+        start SSNM are used; the step-size options are not)
+    solver : DirNeu backend (default: the system's PETSc :class:`~cfcontact.ssnm.DirNeuSolver`;
+        :class:`~cfcontact.condensed.CondensedSolver` for one factorization of K in total)
+    tie_rtol : relative tolerance (on the largest indicator magnitude) under which an indicator
+        value counts as zero at a transition point (ties) or a slope as zero
+    start_sets, orientation : start on the branch of these sets (y = DirNeu(start_sets, f(alpha_start)),
+        which must be consistent there) with this orientation (default: towards alpha_end)
+
+    Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
+    (bracket (alpha, alpha)) and every change (``Transition.changes``).  Status "completed"
+    (alpha range left), "stuck" (dead end / too degenerate, see events), "cycling",
+    "max_transitions" or "stopped by callback".
+    """
+    t0 = time.perf_counter()
+    ctx, opts = _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol)
+    solver = ctx.solver
+    stats0 = solver.stats.as_dict()
+    s = (1 if alpha_end > alpha_start else -1) if orientation is None else int(orientation)
+    if s not in (1, -1):
+        raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
+    path = SolutionPath.for_system(system, "exact", alpha_start, alpha_end, {**opts.to_dict(), "tie_rtol": tie_rtol})
+    alpha = float(alpha_start)
+    if start_sets is not None:
+        if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
+            raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
+        codes = canonical_codes(start_sets, system.friction)
+        ln = ctx.line(codes)
+        y = ln.y(alpha)
+        if np.any(ln.values(alpha) < -ln.tol_v(alpha, 1e-8)):
+            raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha_start}: "
+                             f"DirNeu(start_sets, f(alpha_start)) is not a solution")
+    else:
+        try:
+            start = start_point(system, alpha, y0, opts, solver)
+        except ConvergenceError as exc:
+            # SSNM is only locally convergent; small problems can be started by enumeration
+            if y0 is not None or system.m > START_ENUMERATION_MAX_NODES:
+                raise
+            from cfcontact.enumerate import enumerate_solutions
+
+            sols = enumerate_solutions(system, alpha, max_nodes=START_ENUMERATION_MAX_NODES)
+            if not sols:
+                raise
+            start = sols[0]
+            path.events.append(PathEvent(
+                "start_by_enumeration", alpha, f"SSNM did not converge at alpha_start ({exc}); started from the "
+                f"first of {len(sols)} solutions found by enumeration (follow the others with start_sets=...)",
+                None, {"solutions": [{"sets": x.sets.to_dict(), "states": x.states()} for x in sols]}))
+        ln = ctx.line(canonical_codes(start.sets, system.friction))
+        y = ln.y(alpha)
+    status = _run(ctx, path, ln, s, alpha, y)
+    return _finish(path, solver, stats0, t0, status)
+
+
+def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: int, alternative: int,
+                       options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None) -> dict:
+    """Follow another branch leaving a branch point of an exact path.
+
+    ``path.events[event_index]`` must be a "branch_point" event; ``alternative`` indexes its
+    ``data["alternatives"]``.  The new branches are appended to ``path`` (a tree: the first new
+    branch has ``parent`` = the branch that reached the branch point and ``origin`` = a new
+    Transition).  ``path.status`` (the main run's) is unchanged; the sub-run's status and its
+    branch indices are returned and stored in ``event.data["followed"][str(alternative)]``.
+    """
+    if not (0 <= event_index < len(path.events)) or path.events[event_index].kind != "branch_point":
+        raise InputError(f"event {event_index} is not a branch_point event of this path")
+    ev = path.events[event_index]
+    alts = ev.data["alternatives"]
+    if not (0 <= alternative < len(alts)):
+        raise InputError(f"alternative {alternative} out of range (0..{len(alts) - 1})")
+    alt = alts[alternative]
+    if tie_rtol is None:
+        tie_rtol = path.options.get("tie_rtol", TIE_RTOL)
+    opts = options or PathOptions(**{k: v for k, v in path.options.items() if k in PathOptions.__dataclass_fields__})
+    t0 = time.perf_counter()
+    ctx, opts = _prepare(system, path.alpha_start, path.alpha_end, opts, solver, tie_rtol)
+    stats0 = ctx.solver.stats.as_dict()
+    a = float(alt["alpha"])
+    sets = InactiveSets.from_dict(alt["sets"])
+    ln = ctx.line(canonical_codes(sets, system.friction))
+    from_b = path.branches[ev.branch]
+    old = InactiveSets.from_dict(path.branches[ev.branch].sets.to_dict())
+    oc, nc = canonical_codes(old, system.friction), ln.codes
+    changes = [{"node": int(i), "set": None, "from": STATE_NAMES[int(oc[i])], "to": STATE_NAMES[int(nc[i])]}
+               for i in np.flatnonzero(oc != nc)] or [{"node": -1, "set": None}]
+    d = int(alt["orientation"])
+    tr = Transition(len(path.transitions), a, "transversal" if d == from_b.orientation else "fold",
+                    changes[0]["node"], changes[0]["set"], from_b.index, len(path.branches), bracket=(a, a),
+                    changes=changes)
+    path.transitions.append(tr)
+    first = len(path.branches)
+    status = _run(ctx, path, ln, d, a, ln.y(a), parent=from_b.index, origin=tr.index)
+    st = ctx.solver.stats.as_dict()
+    result = {"status": status, "branches": list(range(first, len(path.branches))),
+              "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}
+    ev.data.setdefault("followed", {})[str(alternative)] = result
+    return result

@@ -1,0 +1,36 @@
+"""Run by tests/test_exact.py serially and under mpirun: exact path with the condensed backend.
+
+Writes (rank 0) a JSON summary to argv[1]."""
+
+import json
+import sys
+
+import numpy as np
+from mpi4py import MPI
+
+import cfcontact
+from cfcontact.condensed import CondensedSolver
+from cfcontact.enumerate import enumerate_solutions
+from cfcontact.exact import canonical_codes
+from cfcontact.lumped import random_system
+from cfcontact.ssnm import DirNeuSolver, InactiveSets
+
+comm = MPI.COMM_WORLD
+system = random_system(4, 2, friction=1.7, extra_dofs=7)
+solver = CondensedSolver(system)
+full = DirNeuSolver(system)
+rng = np.random.default_rng(0)
+for _ in range(6):  # condensed == full J(Z) solve, also in parallel
+    Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
+    f = system.load(rng.uniform(0, 1))
+    yc, yf = solver.solve(Z, f), full.solve(Z, f)
+    assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+assert path.status == "completed", path.events
+ys = [path.branch_y(b, a).tolist() for b in path.branches for a in (0.0, 1.0)]
+nsol = len(enumerate_solutions(system, 0.5, solver=solver))
+if comm.rank == 0:
+    with open(sys.argv[1], "w") as fh:
+        json.dump({"size": comm.size, "keys": [canonical_codes(b.sets, 1.7).tolist() for b in path.branches],
+                   "kinds": [t.kind for t in path.transitions], "alphas": [t.alpha for t in path.transitions],
+                   "ys": ys, "nsol": nsol, "factorizations": solver.stats.factorizations}, fh)

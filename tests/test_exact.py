@@ -1,0 +1,348 @@
+"""Exact piecewise-affine path following, enumeration and the condensed backend."""
+
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import cfcontact
+from cfcontact.condensed import CondensedSolver
+from cfcontact.enumerate import enumerate_solutions
+from cfcontact.exact import canonical_codes, follow_alternative, trace_exact
+from cfcontact.lumped import one_node, random_system
+from cfcontact.ssnm import DirNeuSolver, InactiveSets
+from cfcontact.system import ContactSystem
+from reference import one_node_solutions
+from test_path import alpha_of_direction
+
+try:
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+except ImportError:  # pragma: no cover
+    given = None
+
+K1 = np.array([[1.0, 0.5], [0.5, 1.0]])
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def direction(deg):
+    return np.array([np.cos(np.radians(deg)), np.sin(np.radians(deg))])
+
+
+@pytest.fixture(scope="module")
+def one_node_exact():
+    system = one_node(2.5, K1)
+    return system, cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+
+
+def assert_transitions_verify(system, path, tol=1e-8):
+    for t in path.transitions:
+        assert t.bracket == (t.alpha, t.alpha)
+        for b in (t.from_branch, t.to_branch):
+            y = path.branch_y(b, t.alpha)
+            assert cfcontact.verify(system, y, t.alpha).ok(tol), (t, b)
+
+
+def branch_keys(path, friction):
+    return [canonical_codes(b.sets, friction).tolist() for b in path.branches]
+
+
+# ------------------------------------------------------------------ one node
+def test_one_node_exact_two_folds_at_wedge_rays(one_node_exact):
+    system, path = one_node_exact
+    assert path.status == "completed" and path.method == "exact"
+    assert [t.kind for t in path.transitions] == ["fold", "fold"]
+    rays = sorted([alpha_of_direction(system, np.arctan(0.4)), alpha_of_direction(system, np.arctan(0.5))])
+    got = sorted(t.alpha for t in path.folds)
+    assert abs(got[0] - rays[0]) <= 1e-10 and abs(got[1] - rays[1]) <= 1e-10
+    assert [b.sets.states() for b in path.branches] == [["open"], ["slip+"], ["stick"]]
+    assert [b.orientation for b in path.branches] == [1, -1, 1]
+    for b in path.branches[1:]:
+        assert b.alpha_enter == path.transitions[b.origin].alpha
+        assert b.parent == b.index - 1
+    assert_transitions_verify(system, path, 1e-12)
+    assert len(path.alphas) == 2 * len(path.branches)  # entry and exit point of every branch
+
+
+def test_one_node_exact_multiplicity_three_between_folds(one_node_exact):
+    system, path = one_node_exact
+    a_lo, a_hi = sorted(t.alpha for t in path.folds)
+    for a in np.linspace(a_lo + 1e-9, a_hi - 1e-9, 9):
+        sols = path.solutions_at(a)
+        ref = dict(one_node_solutions(K1, 2.5, system.load(a)))
+        assert sorted(s.states()[0] for s in sols) == sorted(ref) == ["open", "slip+", "stick"]
+        for sol in sols:
+            got = np.array([sol.u[0], sol.u[1], sol.lam_n[0], sol.lam_t[0]])
+            assert np.allclose(got, ref[sol.states()[0]], atol=1e-12)
+    for a in (0.0, 0.2, a_lo - 1e-6, a_hi + 1e-6, 0.9, 1.0):
+        assert path.multiplicity(a) == 1
+
+
+def test_one_node_exact_reverse_direction(one_node_exact):
+    system, fwd = one_node_exact
+    back = cfcontact.trace_path(system, 1.0, 0.0, method="exact")
+    assert back.status == "completed"
+    assert [b.sets.states() for b in back.branches] == [["stick"], ["slip+"], ["open"]]
+    assert np.allclose(sorted(t.alpha for t in back.transitions), sorted(t.alpha for t in fwd.transitions),
+                       atol=1e-14)
+
+
+def test_exact_callback_points_and_stop():
+    system = one_node(2.5, K1)
+    seen = []
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=lambda p: seen.append(p) and False)
+    # one point per branch start plus the end point
+    assert len(seen) == len(path.branches) + 1
+    assert [p.branch for p in seen] == [0, 1, 2, 2]
+    assert seen[-1].alpha == 1.0
+    for p in seen:
+        assert cfcontact.verify(system, p.solution, p.alpha).ok(1e-10)
+    stop = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=lambda p: p.branch == 1)
+    assert stop.status == "stopped by callback" and len(stop.branches) == 2
+
+
+def test_exact_alpha_range_and_max_transitions():
+    system = one_node(2.5, K1)
+    p = cfcontact.trace_path(system, 0.0, 1.0, method="exact", alpha_max=0.5)
+    assert p.status == "completed" and len(p.transitions) == 0 and p.branches[0].alpha_exit == 0.5
+    p = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=1)
+    assert p.status == "max_transitions" and len(p.transitions) == 1
+    assert p.events[-1].kind == "max_transitions"
+
+
+# -------------------------------------------------------- exact vs seed method
+@pytest.mark.parametrize("m", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("friction", [0.0, 0.3, 1.0, 2.5])
+def test_exact_matches_seed_on_random_systems(m, friction):
+    for seed in range(3):
+        system = random_system(m, seed, friction=friction)
+        exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        seed_path = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+        assert exact.status == seed_path.status == "completed", (seed, exact.events, seed_path.events)
+        assert branch_keys(exact, friction) == branch_keys(seed_path, friction), seed
+        assert [t.kind for t in exact.transitions] == [t.kind for t in seed_path.transitions]
+        h_min = seed_path.options["h_min"]
+        for te, ts in zip(exact.transitions, seed_path.transitions):
+            assert abs(te.alpha - ts.alpha) <= h_min
+            assert ts.bracket[0] - 1e-12 <= te.alpha <= ts.bracket[1] + 1e-12
+        assert_transitions_verify(system, exact)
+
+
+def test_exact_large_friction_folds_and_enumeration():
+    found_fold = False
+    for seed in range(6):
+        system = random_system(4, seed, friction=30.0, extra_dofs=3)
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        assert path.status == "completed"
+        found_fold |= bool(path.folds)
+        assert_transitions_verify(system, path)
+        mult, at = path.max_multiplicity()
+        if mult > 1:
+            ens = enumerate_solutions(system, at)
+            assert len(ens) >= mult
+    assert found_fold
+
+
+# ------------------------------------------------------------- branch points
+def two_identical_nodes():
+    K = sla.block_diag(K1, K1)
+    N = np.array([[0, 1, 0, 0], [0, 0, 0, 1.0]])
+    T = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0]])
+    return ContactSystem.from_arrays(K, N, T, np.tile(direction(15), 2), np.tile(direction(35), 2), 2.5)
+
+
+def test_branch_points_reported_and_followed():
+    system = two_identical_nodes()
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed"
+    bps = [i for i, e in enumerate(path.events) if e.kind == "branch_point"]
+    assert len(bps) == 2
+    first = path.events[bps[0]]
+    assert sorted(tuple(a["states"]) for a in first.data["alternatives"]) == \
+        [("open", "slip+"), ("slip+", "open"), ("slip+", "slip+")]
+    assert all(a["orientation"] == -1 and a["kind"] == "fold" for a in first.data["alternatives"])
+    assert sum(a["chosen"] for a in first.data["alternatives"]) == 1
+    # the main path alone misses solutions; following every alternative finds all 9 = 3 x 3
+    assert len(path.solutions_at(0.45)) < 9
+    for i in bps:
+        for k in range(len(path.events[i].data["alternatives"])):
+            if not path.events[i].data["alternatives"][k]["chosen"]:
+                res = follow_alternative(system, path, i, k)
+                assert res["status"] == "completed"
+                b0 = path.branches[res["branches"][0]]
+                assert b0.parent == path.events[i].branch and b0.origin is not None
+                assert path.events[i].data["followed"][str(k)] is res
+    sols = path.solutions_at(0.45)
+    assert len(sols) == 9 == len(enumerate_solutions(system, 0.45))
+    assert_transitions_verify(system, path, 1e-12)
+    with pytest.raises(cfcontact.InputError, match="not a branch_point"):
+        follow_alternative(system, path, len(path.events) + 3, 0)
+
+
+def test_dead_end_is_reported_not_raised(monkeypatch):
+    import cfcontact.exact as ex
+
+    monkeypatch.setattr(ex, "_continuations", lambda *a, **k: ([], {"nodes": [0], "admissible": {}, "candidates": 0}))
+    path = cfcontact.trace_path(one_node(2.5, K1), 0.0, 1.0, method="exact")
+    assert path.status == "stuck" and path.events[-1].kind == "dead_end"
+    assert path.branches[0].alpha_exit == pytest.approx(path.events[-1].alpha)
+
+
+def test_start_sets_and_bad_start_sets():
+    system = one_node(2.5, K1)
+    a = 0.45
+    p = trace_exact(system, a, 1.0, start_sets=InactiveSets.from_states(["slip+"]))
+    assert p.status == "completed" and p.branches[0].sets.states() == ["slip+"]
+    with pytest.raises(cfcontact.InputError, match="not consistent"):
+        trace_exact(system, 0.9, 1.0, start_sets=InactiveSets.from_states(["open"]))
+
+
+# ------------------------------------------------------------------ enumeration
+def test_enumeration_one_node_matches_closed_form():
+    system = one_node(2.5, K1)
+    for a in np.linspace(-0.5, 1.5, 41):
+        ref = dict(one_node_solutions(K1, 2.5, system.load(a)))
+        sols = enumerate_solutions(system, a)
+        assert sorted(s.states()[0] for s in sols) == sorted(ref), a
+        for s in sols:
+            got = np.array([s.u[0], s.u[1], s.lam_n[0], s.lam_t[0]])
+            assert np.allclose(got, ref[s.states()[0]], atol=1e-12)
+
+
+def test_enumeration_at_a_fold_point_finds_the_touching_solutions(one_node_exact):
+    system, path = one_node_exact
+    for t in path.transitions:
+        sols = enumerate_solutions(system, t.alpha)
+        y = path.branch_y(t.from_branch, t.alpha)
+        assert any(np.abs(s.y - y).max() <= 1e-9 for s in sols)
+
+
+def test_enumeration_refuses_large_problems():
+    system = random_system(11, 0)
+    with pytest.raises(cfcontact.EnumerationTooLarge, match=r"m = 11 contact nodes exceeds the limit max_nodes = 10"):
+        enumerate_solutions(system, 0.5)
+    with pytest.raises(cfcontact.EnumerationTooLarge, match="max_nodes = 2"):
+        enumerate_solutions(random_system(3, 0), 0.5, max_nodes=2)
+
+
+def test_enumeration_frictionless_unique():
+    for seed in range(3):
+        system = random_system(4, seed, friction=0.0)
+        for a in (0.0, 0.5, 1.0):
+            sols = enumerate_solutions(system, a)
+            assert len(sols) == 1  # F = 0: a convex problem, one solution
+            ref = cfcontact.ssnm(system, a)
+            assert np.allclose(sols[0].y, ref.y, atol=1e-10 * np.abs(ref.y).max())
+
+
+# ------------------------------------------------------------- condensed backend
+@pytest.mark.parametrize("store", [True, False])
+def test_condensed_matches_full_backend(store):
+    rng = np.random.default_rng(3)
+    for seed in range(4):
+        system = random_system(4, seed, friction=[0.0, 0.7, 1.3, 2.9], extra_dofs=5)
+        cond, full = CondensedSolver(system, store_columns=store), DirNeuSolver(system)
+        for _ in range(12):
+            Z = InactiveSets(rng.random(4) < 0.3, rng.random(4) < 0.4, rng.random(4) < 0.4)
+            f = system.load(rng.uniform(-1, 2))
+            yc, yf = cond.solve(Z, f), full.solve(Z, f)
+            assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+        assert cond.stats.factorizations == 1
+        u = rng.standard_normal(system.n)
+        assert np.allclose(cond.K_times(u), full.K_times(u))
+
+
+def test_exact_with_condensed_backend_one_factorization():
+    for seed in range(3):
+        system = random_system(5, seed, friction=1.0)
+        solver = CondensedSolver(system)
+        pc = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+        pf = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        assert pc.status == pf.status == "completed"
+        assert solver.stats.factorizations == 1 and pc.stats["factorizations"] == 0
+        assert branch_keys(pc, 1.0) == branch_keys(pf, 1.0)
+        assert np.allclose([t.alpha for t in pc.transitions], [t.alpha for t in pf.transitions], rtol=0, atol=1e-10)
+        for bc, bf in zip(pc.branches, pf.branches):
+            for a in (0.0, 1.0):
+                yc, yf = pc.branch_y(bc, a), pf.branch_y(bf, a)
+                assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+    # ssnm with the condensed backend
+    sol = cfcontact.ssnm(system, 0.3, solver=solver)
+    assert cfcontact.verify(system, sol, 0.3, solver=solver).ok(1e-10)
+
+
+MPI_SCRIPT = os.path.join(HERE, "mpi_condensed.py")
+
+
+def test_condensed_and_exact_under_mpi(run_mpi, tmp_path):
+    out = tmp_path / "mpi.json"
+    run_mpi(2, MPI_SCRIPT, str(out), timeout=300)
+    got = json.loads(out.read_text())
+    serial_out = tmp_path / "serial.json"
+    import subprocess
+
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(HERE) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    subprocess.run([sys.executable, MPI_SCRIPT, str(serial_out)], check=True, env=env, timeout=300)
+    ref = json.loads(serial_out.read_text())
+    assert got["size"] == 2 and ref["size"] == 1
+    assert got["keys"] == ref["keys"] and got["kinds"] == ref["kinds"]
+    assert np.allclose(got["alphas"], ref["alphas"], rtol=0, atol=1e-10)
+    for a, b in zip(got["ys"], ref["ys"]):
+        a, b = np.asarray(a), np.asarray(b)
+        assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
+    assert got["nsol"] == ref["nsol"]
+    assert got["factorizations"] == 1
+
+
+# -------------------------------------------------------------- property-based
+if given is not None:
+
+    @settings(max_examples=int(os.environ.get("CFCONTACT_HYPOTHESIS_EXAMPLES", "40")), deadline=20000,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(m=st.integers(1, 4), friction=st.one_of(st.just(0.0), st.floats(1e-6, 3.0)), seed=st.integers(0, 10_000),
+           alphas=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=3), zero_f=st.booleans())
+    def test_property_exact_path_solutions_are_enumerated(m, friction, seed, alphas, zero_f):
+        system = random_system(m, seed, friction=0.0 if zero_f else friction, extra_dofs=1 + seed % 3)
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        assert path.status in ("completed", "stuck", "cycling", "max_transitions")
+        if path.status != "completed":
+            assert path.events, "a non-completed run must report an event"
+        assert_transitions_verify(system, path)
+        for a in alphas:
+            ens = enumerate_solutions(system, a)
+            for sol in path.solutions_at(a):
+                assert any(np.abs(sol.y - z.y).max() <= 1e-8 * max(np.abs(z.y).max(), 1e-300) for z in ens), a
+        if m <= 3 and friction > 0 and not zero_f:
+            rng = np.random.default_rng(seed)
+            cond, full = CondensedSolver(system), DirNeuSolver(system)
+            for _ in range(3):
+                Z = InactiveSets.from_states(rng.integers(0, 4, m))
+                f = system.load(rng.uniform(0, 1))
+                try:
+                    yf = full.solve(Z, f)
+                except cfcontact.SingularSystemError:
+                    continue
+                assert np.abs(cond.solve(Z, f) - yf).max() <= 1e-9 * np.abs(yf).max()
+else:  # pragma: no cover
+    def test_property_exact_path_solutions_are_enumerated():
+        pytest.skip("hypothesis is not installed (apt-get install python3-hypothesis)")
+
+
+def test_exact_path_save_load_round_trip(tmp_path):
+    system = two_identical_nodes()
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    follow_alternative(system, path, 0, 1)
+    back = cfcontact.SolutionPath.load(path.save(tmp_path / "exact.cfpath"))
+    assert back.method == "exact" and back.status == path.status
+    assert [t.to_dict() for t in back.transitions] == [t.to_dict() for t in path.transitions]
+    assert [e.kind for e in back.events] == [e.kind for e in path.events]
+    assert back.events[0].data["alternatives"] == path.events[0].data["alternatives"]
+    assert [(b.parent, b.origin) for b in back.branches] == [(b.parent, b.origin) for b in path.branches]
+    for a in (0.2, 0.45, 0.8):
+        s1, s2 = path.solutions_at(a), back.solutions_at(a)
+        assert len(s1) == len(s2)
+        for x, y in zip(s1, s2):
+            assert np.array_equal(x.y, y.y)
