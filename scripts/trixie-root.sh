@@ -22,7 +22,9 @@
 #                            runs on the same workdir are serialised with a lock, so give
 #                            concurrent users different workdirs
 #   CFCONTACT_DEBIAN_MIRROR  Debian mirror URL (default: the one in /etc/apt/sources.list*)
-#   CFCONTACT_NO_INSTALL=1   do not run scripts/install.sh before the command
+#   CFCONTACT_NO_INSTALL=1   do not run scripts/install.sh before the command (./test.sh and
+#                            ./demo.sh run it themselves)
+#   CFCONTACT_NO_UNSHARE=1   mount in place (unmounted on exit) instead of in a namespace
 # Passed into the root: CI, TERM, PYTEST_ADDOPTS, CFCONTACT_*, OMPI_*, HYPOTHESIS_*.
 set -euo pipefail
 
@@ -149,7 +151,6 @@ create_root() {
     # Same release-file date policy as the host's apt (matters for snapshot mirrors).
     apt-config dump 2>/dev/null | grep -E '^Acquire::Check-(Valid-Until|Date) ' \
         >"$partial/etc/apt/apt.conf.d/90cfcontact-host" || true
-    printf 'APT::Install-Recommends "false";\n' >"$partial/etc/apt/apt.conf.d/90cfcontact-norecommends"
     # No daemons start inside the root.
     printf '#!/bin/sh\nexit 101\n' >"$partial/usr/sbin/policy-rc.d"
     chmod 755 "$partial/usr/sbin/policy-rc.d"
@@ -197,6 +198,7 @@ while IFS='=' read -r name _; do
 done < <(env)
 
 [ $# -gt 0 ] || set -- bash -l
+case "$1" in ./test.sh|test.sh|./demo.sh|demo.sh) ENVV+=(CFCONTACT_NO_INSTALL=1) ;; esac  # they install
 INNER='cd "$0" || exit 1
 if [ "${CFCONTACT_NO_INSTALL:-}" != 1 ] && [ -x scripts/install.sh ]; then
     scripts/install.sh || exit $?
@@ -215,7 +217,7 @@ cleanup() {
 trap cleanup EXIT
 
 rc=0
-if unshare --mount --propagation private true 2>/dev/null; then
+if [ "${CFCONTACT_NO_UNSHARE:-}" != 1 ] && unshare --mount --propagation private true 2>/dev/null; then
     # Private mount + PID namespace: mounts and stray processes end with the command.
     unshare --mount --pid --fork --kill-child --propagation private -- /bin/bash -c '
         R=$1; W=$2; I=$3; n=$4; shift 4
