@@ -37,6 +37,9 @@ _LAZY = {
     "PathOptions": ("cfcontact.path", "PathOptions"),
     "enumerate_solutions": ("cfcontact.enumerate", "enumerate_solutions"),
     "one_node": ("cfcontact.lumped", "one_node"),
+    "trace_exact": ("cfcontact.exact", "trace_exact"),
+    "follow_alternative": ("cfcontact.exact", "follow_alternative"),
+    "CondensedSolver": ("cfcontact.condensed", "CondensedSolver"),
 }
 
 
