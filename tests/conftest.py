@@ -31,3 +31,14 @@ def run_mpi():
             raise AssertionError(f"mpirun failed ({proc.returncode}):\nSTDOUT:\n{proc.stdout}\nSTDERR:\n{proc.stderr}")
         return proc
     return run
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Run the tests that render with VTK first.
+
+    Measured: after the many gmsh/dolfinx model builds of test_assembly.py, the PyPI VTK 9.7
+    EGL renderer aborts in the same process (each test alone passes).  Rendering first keeps
+    the suite deterministic; real users render after one model build, which works.
+    """
+    first = ("test_render.py", "test_cli.py")
+    items.sort(key=lambda item: 0 if item.fspath.basename in first else 1)

@@ -1,0 +1,354 @@
+"""The command line (cfcontact.cli): run / plot / render / info, bad input, stop and resume."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from cfcontact import cli
+from cfcontact.path import SolutionPath
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CASES = os.path.join(ROOT, "demos", "cases")
+MSH_NAME = "two_blocks_6x2.msh"  # referenced by demos/cases/user_msh.toml
+
+SMALL = """
+title = "small"
+[geometry]
+kind = "two_blocks"
+nx = 12
+ny = 4
+[contact]
+friction = 1.5
+[output]
+window_size = [640, 400]
+"""
+
+
+# ------------------------------------------------------------------ helpers
+def _env():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _rgb(fn):
+    img = imread(fn)
+    if img.dtype != np.uint8:
+        img = (img[..., :3] * 255).round()
+    return np.asarray(img[..., :3], dtype=int)
+
+
+def _assert_picture(fn, size=None):
+    """A PNG of the given (width, height) that is not blank."""
+    assert os.path.isfile(fn), fn
+    with open(fn, "rb") as fh:
+        assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
+    img = _rgb(fn)
+    if size is not None:
+        assert (img.shape[1], img.shape[0]) == tuple(size)
+    flat = img.reshape(-1, 3)
+    assert flat.std() > 5, f"{fn} is blank"
+    assert len(np.unique(flat, axis=0)) >= 20
+
+
+def _same_path(a: SolutionPath, b: SolutionPath):
+    assert a.status == b.status
+    assert [(t.kind, t.alpha, t.node, t.set, t.from_branch, t.to_branch) for t in a.transitions] == \
+        [(t.kind, t.alpha, t.node, t.set, t.from_branch, t.to_branch) for t in b.transitions]
+    np.testing.assert_array_equal(a.alphas, b.alphas)
+    np.testing.assert_array_equal(a.point_branch, b.point_branch)
+    np.testing.assert_allclose(a.ys, b.ys, rtol=0, atol=1e-12 * np.abs(b.ys).max())
+
+
+def _write(tmp_path, text, name="case.toml"):
+    fn = tmp_path / name
+    fn.write_text(text)
+    return str(fn)
+
+
+@pytest.fixture(scope="module")
+def cases(tmp_path_factory):
+    """demos/cases copied to a temporary folder, with the .msh that user_msh.toml needs."""
+    d = tmp_path_factory.mktemp("cases")
+    for name in os.listdir(CASES):
+        if name.endswith(".toml"):
+            shutil.copy(os.path.join(CASES, name), d / name)
+    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), str(d / MSH_NAME),
+                    "--nx", "6", "--ny", "2"], check=True, capture_output=True, env=_env(), cwd=ROOT)
+    return d
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """An uninterrupted run of SMALL: (case file, output folder)."""
+    d = tmp_path_factory.mktemp("small")
+    case = _write(d, SMALL)
+    assert cli.main(["run", case, "-q"]) == 0
+    return case, str(d / "case_out")
+
+
+# ------------------------------------------------------------------ run
+@pytest.mark.parametrize("name", ["two_blocks", "inclined", "user_msh"])
+def test_example_cases_run(cases, name):
+    case = str(cases / f"{name}.toml")
+    assert cli.main(["run", case, "-q"]) == 0
+    out = cases / f"{name}_out"
+    assert not os.path.exists(str(out) + ".partial")
+    for f in ("path/path.json", "summary.json", "case.toml", "path.png", "multiplicity.png", "panel.png"):
+        assert (out / f).exists(), f
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["format"] == "cfcontact-run"
+    assert summary["status"] == "completed"
+    assert summary["summary"]["points"] > 2
+    assert summary["max_multiplicity"] >= 1
+    assert "checkpoint" not in os.listdir(out)
+    _assert_picture(str(out / "panel.png"), (800, 500))
+    _assert_picture(str(out / "path.png"), (800, 450))
+    path = SolutionPath.load(str(out / "path"))
+    assert path.geometry is not None and len(path.transitions) == len(summary["transitions"])
+
+
+def test_example_case_via_python_m(cases):
+    """python -m cfcontact run, in a subprocess (the foundation example)."""
+    case = str(cases / "foundation.toml")
+    proc = subprocess.run([sys.executable, "-m", "cfcontact", "run", case], capture_output=True, text=True,
+                          env=_env(), cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    out = cases / "foundation_out"
+    assert "completed" in proc.stdout and str(out) in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["m"] == 12
+    _assert_picture(str(out / "panel.png"), (800, 500))
+    proc = subprocess.run([sys.executable, "-m", "cfcontact", "info", str(out)], capture_output=True, text=True,
+                          env=_env(), cwd=ROOT, timeout=600)
+    assert proc.returncode == 0 and "transitions" in proc.stdout
+
+
+def test_run_outputs_pdf_and_animation(tmp_path):
+    case = _write(tmp_path, SMALL.replace("[output]", '[output]\nplot_formats = ["png", "pdf"]\n'
+                                          'render_animation = true\nanimation_frames = 4\n'
+                                          'component = "lam_n:5"\nzoom = [0.4, 0.6]'))
+    assert cli.main(["run", case, "-q", "--output", str(tmp_path / "res")]) == 0
+    res = tmp_path / "res"
+    assert (res / "path.pdf").read_bytes()[:4] == b"%PDF"
+    assert (res / "animation.gif").read_bytes()[:3] == b"GIF"
+    _assert_picture(str(res / "path.png"))
+
+
+def test_run_refuses_existing_output_then_force(small_run, capsys):
+    case, out = small_run
+    before = os.path.getmtime(os.path.join(out, "summary.json"))
+    assert cli.main(["run", case, "-q"]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+    assert os.path.getmtime(os.path.join(out, "summary.json")) >= before
+    assert not os.path.exists(out + ".partial") and not os.path.exists(out + ".old")
+
+
+def test_quiet_prints_nothing_verbose_shows_progress(tmp_path, capsys):
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case, "--quiet"]) == 0
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err == ""
+    assert cli.main(["run", case, "--verbose", "--force"]) == 0
+    cap = capsys.readouterr()
+    assert "branches" in cap.err and "linear solves" in cap.err and "alpha=" in cap.err  # progress lines
+    assert "completed" in cap.out
+
+
+# ------------------------------------------------------------------ bad input
+BAD = [
+    ("unknown key", '[geometry]\nkind = "two_blocks"\n[contact]\nfrction = 0.3\n', ["frction", "[contact]", "friction"]),
+    ("unknown section", '[geometry]\nkind = "two_blocks"\n[solver]\nx = 1\n', ["solver", "geometry"]),
+    ("wrong type", '[geometry]\nkind = "two_blocks"\nnx = "12"\n', ["nx", "integer", "string"]),
+    ("wrong type float", '[geometry]\nkind = "two_blocks"\n[material]\nE = "steel"\n', ["E", "number", "string"]),
+    ("missing tag", '[geometry]\nkind = "two_blocks"\n[loads]\nclamp = ["left1", "left3"]\n', ["left3", "left2"]),
+    ("missing load tag", '[geometry]\nkind = "two_blocks"\n[loads.f1]\ntop = [0, -1]\n', ["top", "[loads.f1]", "top1"]),
+    ("foundation tag", '[geometry]\nkind = "block_on_foundation"\n[loads]\nclamp = ["left2"]\n', ["left2", "left1"]),
+    ("negative friction", '[geometry]\nkind = "two_blocks"\n[contact]\nfriction = -0.2\n', ["friction", "-0.2"]),
+    ("empty alpha range", '[geometry]\nkind = "two_blocks"\n[path]\nalpha_start = 0.5\nalpha_end = 0.5\n',
+     ["alpha_start", "alpha_end", "empty"]),
+    ("unknown method", '[geometry]\nkind = "two_blocks"\n[path]\nmethod = "newton"\n', ["method", "newton", "seed"]),
+    ("bad geometry kind", '[geometry]\nkind = "sphere"\n', ["kind", "sphere", "two_blocks"]),
+    ("missing mesh", '[geometry]\nkind = "msh"\nfile = "nope.msh"\n', ["file", "nope.msh"]),
+    ("inclined without angle", '[geometry]\nkind = "inclined"\n', ["angle"]),
+    ("bad TOML", '[geometry\nkind = "two_blocks"\n', ["TOML"]),
+    ("component range", SMALL + 'component = ["lam_n", 99]\n', ["component", "99"]),
+    ("unclamped body", '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[loads]\nclamp = ["left1"]\n',
+     ["body 2", "Dirichlet"]),
+]
+
+
+@pytest.mark.parametrize("label,text,words", BAD, ids=[b[0] for b in BAD])
+def test_bad_input_exit_2_one_message_no_output(tmp_path, capsys, label, text, words):
+    case = _write(tmp_path, text)
+    assert cli.main(["run", case]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err and lines[0].startswith("cfcontact run: error:")
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # no output folder, no .partial
+
+
+def test_bad_input_msh_tag_names_valid_groups(cases, tmp_path, capsys):
+    shutil.copy(cases / MSH_NAME, tmp_path / MSH_NAME)
+    case = _write(tmp_path, f'[geometry]\nkind = "msh"\nfile = "{MSH_NAME}"\n[loads]\nclamp = ["left1", "left2"]\n'
+                            '[loads.f1]\ntop1 = [0, -1]\n[loads.f2]\nroof = [1, 0]\n')
+    assert cli.main(["run", case]) == 2
+    err = capsys.readouterr().err
+    assert "roof" in err and "[loads.f2]" in err and "top1=12" in err
+    assert sorted(os.listdir(tmp_path)) == sorted(["case.toml", MSH_NAME])
+
+
+def test_bad_command_line(tmp_path, capsys):
+    assert cli.main(["run"]) == 2  # argparse usage error
+    assert cli.main(["run", str(tmp_path / "missing.toml")]) == 2
+    assert "no such case file" in capsys.readouterr().err
+    assert cli.main(["info", str(tmp_path)]) == 2
+    assert "not a saved path" in capsys.readouterr().err
+    assert cli.main(["--version"]) == 0
+
+
+# ------------------------------------------------------------------ plot / render / info
+def test_info(small_run, capsys):
+    _, out = small_run
+    assert cli.main(["info", out]) == 0
+    text = capsys.readouterr().out
+    for w in ("status completed", "transitions:", "transversal", "folds:", "multiplicity over alpha", "events:",
+              "linear_solves"):
+        assert w in text, w
+    assert cli.main(["info", os.path.join(out, "path"), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["status"] == "completed" and rep["multiplicity"][0]["solutions"] == 1
+    assert len(rep["transitions"]) == json.load(open(os.path.join(out, "summary.json")))["summary"]["transitions"]
+
+
+def test_plot(small_run, tmp_path):
+    _, out = small_run
+    png = str(tmp_path / "p.png")
+    assert cli.main(["plot", out, "--component", "lam_t:3", "--zoom", "0.4", "0.6", "-o", png, "-q"]) == 0
+    _assert_picture(png, (800, 450))
+    pdf = tmp_path / "p.pdf"
+    assert cli.main(["plot", out, "-o", str(pdf), "-q"]) == 0
+    assert pdf.read_bytes()[:4] == b"%PDF"
+    mult = str(tmp_path / "m.png")
+    assert cli.main(["plot", out, "--multiplicity", "-o", mult, "-q"]) == 0
+    _assert_picture(mult)
+    assert cli.main(["plot", out, "--component", "lam_q:1", "-o", png]) == 2
+    assert cli.main(["plot", out, "-o", str(tmp_path / "p.jpg")]) == 2
+
+
+def test_render(small_run, tmp_path, capsys):
+    _, out = small_run
+    one = str(tmp_path / "one.png")
+    assert cli.main(["render", out, "--alpha", "0.5", "--window-size", "640", "400", "-o", one]) == 0
+    assert "1 solution(s) at alpha = 0.5" in capsys.readouterr().out
+    _assert_picture(one, (640, 400))
+    panel = str(tmp_path / "panel.png")
+    assert cli.main(["render", out, "--panel", "--window-size", "500", "300", "-o", panel, "-q"]) == 0
+    _assert_picture(panel, (500, 300))
+    gif = tmp_path / "anim.gif"
+    assert cli.main(["render", out, "--animation", str(gif), "--frames", "3", "--window-size", "320", "200",
+                     "-q"]) == 0
+    assert gif.read_bytes()[:3] == b"GIF"
+    assert cli.main(["render", out, "--alpha", "7", "-o", one]) == 2
+    assert "covers alpha" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ stop and resume
+def _resume_equals(tmp_path, small_run, stop_args, expect_code=3):
+    ref = SolutionPath.load(os.path.join(small_run[1], "path"))
+    case = _write(tmp_path, SMALL)
+    out = tmp_path / "case_out"
+    assert cli.main(["run", case, "-q", *stop_args]) == expect_code
+    assert not out.exists()
+    ck = tmp_path / "case_out.partial" / "checkpoint"
+    state = json.loads((ck / "state.json").read_text())
+    assert state["resumable"] and state["resume_state"]["h"] > 0
+    partial = SolutionPath.load(str(ck / "path"))
+    assert partial.status == "stopped by callback" and len(partial.alphas) < len(ref.alphas)
+    # without --resume: refused (exit 2), checkpoint kept
+    assert cli.main(["run", case, "-q"]) == 2
+    assert ck.exists()
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert not (tmp_path / "case_out.partial").exists()
+    _same_path(SolutionPath.load(str(out / "path")), ref)
+    return partial
+
+
+def test_stop_after_transitions_and_resume(tmp_path, small_run):
+    partial = _resume_equals(tmp_path, small_run, ["--stop-after-transitions", "3"])
+    assert len(partial.transitions) == 3
+
+
+def test_stop_at_alpha_and_resume(tmp_path, small_run):
+    partial = _resume_equals(tmp_path, small_run, ["--stop-at-alpha", "0.6"])
+    assert partial.alphas[-1] >= 0.6 and partial.alphas[-2] < 0.6
+
+
+def test_time_limit_and_resume(tmp_path, small_run):
+    partial = _resume_equals(tmp_path, small_run, ["--time-limit", "1e-6"])
+    assert len(partial.alphas) == 1  # stopped at the start point
+
+
+def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
+    on_point = cli._Runner.on_point
+
+    def interrupt_at_40(self, pt):
+        if pt.index == 40:
+            signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
+        return on_point(self, pt)
+
+    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_40)
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case, "-q"]) == 130
+    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    state = json.loads((tmp_path / "case_out.partial" / "checkpoint" / "state.json").read_text())
+    assert "Ctrl-C" in state["reason"]
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    _same_path(SolutionPath.load(str(tmp_path / "case_out" / "path")), SolutionPath.load(
+        os.path.join(small_run[1], "path")))
+
+
+def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkeypatch):
+    saves = []
+    save = cli.save_checkpoint
+    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
+    assert len(saves) > 100 and set(saves) == {"checkpoint"}
+    _same_path(SolutionPath.load(str(tmp_path / "case_out" / "path")),
+               SolutionPath.load(os.path.join(small_run[1], "path")))
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+
+
+def test_resume_checks(tmp_path, capsys):
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err
+    assert cli.main(["run", case, "-q", "--stop-after-transitions", "2"]) == 3
+    _write(tmp_path, SMALL.replace("friction = 1.5", "friction = 1.0"))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    assert "[contact]" in capsys.readouterr().err
+    assert cli.main(["run", case, "-q", "--force"]) == 0  # start over
+    assert not (tmp_path / "case_out.partial").exists()
+
+
+def test_failure_removes_partial_folder(tmp_path, monkeypatch, capsys):
+    def boom(*a, **k):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(cli, "write_outputs", boom)
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case]) == 1
+    assert "boom" in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]
