@@ -156,6 +156,42 @@ except Exception: print("")' 2>/dev/null || true)
         "${PIP[@]}" install -q -c "$CONSTRAINTS" "pyvista==$PYVISTA_VERSION" "vtk==$VTK_VERSION" 2>&1 |
             { grep -v 'is ignored: it is neither a file nor a directory' || true; } >&2
     fi
+    # Debian 12's dolfinx 0.5 turns on RTLD_GLOBAL for good (dolfinx/__init__.py), so libdolfinx's
+    # std::regex code (new C++ string ABI) interposes on the PyPI VTK wheel's own (old ABI,
+    # manylinux2014) when VTK is loaded after dolfinx: abort with std::bad_alloc as soon as VTK
+    # formats a label (scalar bars). A small startup hook in the venv loads VTK's core library
+    # just before the first `import dolfinx`, whoever imports it (tests, demos, cfcontact).
+    SITE=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+    [ -d "$SITE" ] || die "venv site-packages not found: $SITE"
+    cat >"$SITE/_cfcontact_vtk_first.py" <<'PYEOF'
+"""Written by cfcontact's scripts/install.sh (Debian 12 venv only).
+
+Debian 12's dolfinx 0.5 sets RTLD_GLOBAL for every later extension module, so libdolfinx's
+std::regex instantiations (C++11 string ABI) would be bound into the PyPI VTK wheel (old string
+ABI) if VTK were loaded after dolfinx, and VTK aborts (std::bad_alloc) when it formats a label.
+Loading vtkCommonCore first binds VTK to its own code. Costs ~0.2 s, once, on `import dolfinx`.
+"""
+import sys
+
+
+class _VTKBeforeDolfinx:
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if name == "dolfinx":
+            try:
+                sys.meta_path.remove(_VTKBeforeDolfinx)
+            except ValueError:
+                pass
+            try:
+                import vtkmodules.vtkCommonCore  # noqa: F401
+            except Exception:
+                pass
+        return None
+
+
+sys.meta_path.insert(0, _VTKBeforeDolfinx)
+PYEOF
+    echo "import _cfcontact_vtk_first" >"$SITE/_cfcontact_vtk_first.pth"
     "$VENV/bin/python" - "$CONSTRAINTS" <<'EOF'
 import sys, numpy, matplotlib
 want = dict(l.strip().split("==") for l in open(sys.argv[1]) if "==" in l)
@@ -188,25 +224,33 @@ EOF
 
 # Off-screen rendering smoke test (a warning only: everything but the renders works without it).
 RENDER_TEST='
+import dolfinx   # first, as in the tests: checks the VTK/dolfinx load order on Debian 12
 import numpy as np, pyvista as pv
 pl = pv.Plotter(off_screen=True, window_size=(160, 120))
-pl.add_mesh(pv.Sphere(), color="red")
+mesh = pv.Sphere()
+mesh["s"] = np.arange(mesh.n_points, dtype=float)
+pl.add_mesh(mesh, scalars="s", scalar_bar_args={"title": "s"})
 img = pl.screenshot(return_img=True)
 pl.close()
 assert img.std() > 1.0, "blank image"
 print(pl.__class__.__name__, "rendered a", img.shape, "image")
 '
 render_ok=0
+RENDER_LOG="$VENV/cfcontact-render-check.log"
 if [ "$CODENAME" = bookworm ]; then
     # PyPI VTK: EGL without any display.
     env -u DISPLAY VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow \
-        "$VENV/bin/python" -c "$RENDER_TEST" >/dev/null 2>&1 && render_ok=1
+        "$VENV/bin/python" -c "$RENDER_TEST" >"$RENDER_LOG" 2>&1 && render_ok=1
 else
     # Debian's VTK needs X: a private Xvfb.
-    timeout 120 xvfb-run -a -s "-screen 0 1024x768x24" "$VENV/bin/python" -c "$RENDER_TEST" >/dev/null 2>&1 && render_ok=1
+    timeout 120 xvfb-run -a -s "-screen 0 1024x768x24" "$VENV/bin/python" -c "$RENDER_TEST" \
+        >"$RENDER_LOG" 2>&1 && render_ok=1
 fi
 if [ $render_ok = 1 ]; then say "pyvista renders off-screen"
-else say "WARNING: pyvista could not render off-screen; renders will fail (everything else works)"; fi
+else
+    tail -n 15 "$RENDER_LOG" >&2
+    say "WARNING: pyvista could not render off-screen (log: $RENDER_LOG); renders will fail, everything else works"
+fi
 
 stamp_value >"$STAMP"
 say "done in $((SECONDS - t0)) s: $VENV (Debian $CODENAME)"

@@ -36,9 +36,10 @@ def run_mpi():
 def pytest_collection_modifyitems(session, config, items):
     """Run the tests that render with VTK first.
 
-    Measured: after the many gmsh/dolfinx model builds of test_assembly.py, the PyPI VTK 9.7
-    EGL renderer aborts in the same process (each test alone passes).  Rendering first keeps
-    the suite deterministic; real users render after one model build, which works.
+    On Debian 12, dolfinx 0.5 turns on RTLD_GLOBAL, and the PyPI VTK wheel loaded after it binds
+    libdolfinx's C++ regex code (other string ABI) and aborts (std::bad_alloc).  install.sh puts a
+    hook in the venv that loads VTK's core before dolfinx; running render tests first is a second
+    guard for runs outside that venv.
     """
     first = ("test_render.py", "test_cli.py")
     items.sort(key=lambda item: 0 if item.fspath.basename in first else 1)
