@@ -64,7 +64,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
     fvec = system.load(alpha) if f is None else np.asarray(f, dtype=float)
     if fvec.shape != (n,):
         raise InputError(f"load vector has length {fvec.size}, expected n = {n}")
-    x_loc, w = solver.load_data(fvec)
+    w = solver.load_data(fvec)
     S = solver.S
     F = system.friction_vector
     rho = system.rho
@@ -101,7 +101,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         cons &= np.where(codes == 3, bm <= tol, True)
         good = np.flatnonzero(ok & np.all(cons, axis=1))
         for k in good:
-            y = np.concatenate([solver.displacement(x_loc, fvec, lam[k]), lam[k]])
+            y = np.concatenate([solver.displacement(fvec, lam[k]), lam[k]])
             if not np.all(np.isfinite(y)):
                 continue
             if not verify(system, y, alpha, f=fvec, solver=solver).ok(1e-8):

@@ -188,17 +188,17 @@ class _Context:
         if k in self.lines:
             return self.lines[k]
         sets = sets_from_codes(codes)
-        system, solver, m, n = self.system, self.solver, self.m, self.system.n
+        system, solver, n = self.system, self.solver, self.system.n
         cidx, csgn, cnode = state_constraints(codes, self.F0)
         if hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
             # condensed backend: multipliers and indicators in O(m^2), u only when needed
-            (x1, w1), (x2, w2) = solver.load_data(self.f1), solver.load_data(self.f2)
+            w1, w2 = solver.load_data(self.f1), solver.load_data(self.f2)
             lam1, lam2 = solver.multipliers(sets, w1), solver.multipliers(sets, w2)
             g1, g2 = self._condensed_indicators(lam1, w1), self._condensed_indicators(lam2, w2)
 
-            def full(x1=x1, x2=x2, lam1=lam1, lam2=lam2):
-                return (np.concatenate([solver.displacement(x1, self.f1, lam1), lam1]),
-                        np.concatenate([solver.displacement(x2, self.f2, lam2), lam2]))
+            def full(lam1=lam1, lam2=lam2):
+                return (np.concatenate([solver.displacement(self.f1, lam1), lam1]),
+                        np.concatenate([solver.displacement(self.f2, lam2), lam2]))
 
             ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full)
         else:
@@ -272,7 +272,6 @@ def _same_line(a: _Line, b: _Line, rtol=1e-10) -> bool:
 
 def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tuple:
     """Every (line, direction) continuing the path at the transition point alpha of branch (ln, s)."""
-    m = ctx.m
     lam_star = ln.lam(alpha)
     g_star = ln.indicators(alpha)  # indicators are linear in y
     tol = ln.tol_v(alpha, ctx.rtol)

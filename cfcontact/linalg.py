@@ -109,13 +109,16 @@ def vec_from_triplets(idx, vals, n, comm=MPI.COMM_WORLD, ranges=None):
     return vec
 
 
-def gather_vec(v) -> np.ndarray:
-    """The whole of a distributed Vec as a NumPy array on every rank."""
-    comm = v.getComm().tompi4py()
-    local = np.array(v.getArray(readonly=True), copy=True)
+def concat_ranks(comm, local: np.ndarray) -> np.ndarray:
+    """The blocks ``local`` of all ranks, concatenated in rank order, on every rank."""
     if comm.Get_size() == 1:
         return local
     return np.concatenate(comm.allgather(local))
+
+
+def gather_vec(v) -> np.ndarray:
+    """The whole of a distributed Vec as a NumPy array on every rank."""
+    return concat_ranks(v.getComm().tompi4py(), np.array(v.getArray(readonly=True), copy=True))
 
 
 def gather_mat(A) -> sp.csr_matrix:

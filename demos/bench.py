@@ -29,12 +29,11 @@ default; ``--variant baseline`` runs the library's CondensedSolver unchanged):
 * The two displacements of a branch, u = K^-1 (f1 - B^T lam1) and K^-1 (f2 - B^T lam2), are
   computed by one 2-column solve with K (MatMatSolve) instead of two single solves.
 
-K^-1 B^T is not kept by default (``--store-gib 0``): u = K^-1 f - (K^-1 B^T) lam cancels
-heavily (the contact forces nearly balance the load), its equilibrium residual grows with the
+The library never keeps K^-1 B^T for displacements: u = K^-1 f - (K^-1 B^T) lam cancels
+heavily (the contact forces nearly balance the load); its equilibrium residual grew with the
 mesh (5e-10 at n = 2e4, 4e-8 at n = 1.2e5, above the 1e-8 of the checks) while
-K^-1 (f - B^T lam) stays at 1e-12; and reading the n x 2m dense block per displacement is
-memory-bound, only ~1.5x faster than a sparse solve.  ``--store-gib G`` keeps it (computed in
-column blocks) when n * 2m * 8 bytes <= G GiB.
+K^-1 (f - B^T lam) stays at 1e-12, and reading the n x 2m dense block was only ~1.5x faster
+than a sparse solve.
 
 Sizes above 5e5 DOFs run in "lean" storage: each stored path point is verified when it is
 added and only its multipliers are kept (the full path keeps 4 vectors of length n per branch,
@@ -68,7 +67,6 @@ for _p in (ROOT, HERE):
 SIZES = (1e4, 1.2e5, 1e6)
 QUICK_SIZES = (2e3, 1e4)
 LARGE = 5e5  # --skip-large drops sizes above this; lean storage above this
-STORE_GIB = 0.0  # see the module docstring: stored K^-1 B^T loses accuracy
 
 
 def demo():
@@ -94,7 +92,6 @@ def _condensed_classes():
     from collections import OrderedDict
 
     import scipy.linalg as sla
-    from petsc4py import PETSc
 
     from cfcontact.condensed import CondensedSolver
     from cfcontact.errors import SingularSystemError
@@ -111,25 +108,7 @@ def _condensed_classes():
             return S
 
     class ImprovedCondensedSolver(TimedCondensedSolver):
-        """K^-1 B^T kept (computed in column blocks) + reduced dense DirNeu systems."""
-
-        block_entries = 50_000_000
-
-        def _schur(self):
-            if not self.store or self.size > 1:
-                return super()._schur()
-            t0 = time.perf_counter()
-            m2 = 2 * self.m
-            X = np.empty((self.nloc, m2))
-            block = max(1, min(m2, int(self.block_entries // max(self.nloc, 1))))
-            for c0 in range(0, m2, block):
-                cols = np.arange(c0, min(m2, c0 + block))
-                X[:, cols] = self._kinv_columns(cols)
-            self.X_local = X
-            S = self.B_local @ X
-            S = 0.5 * (S + S.T)
-            self.t_schur = time.perf_counter() - t0
-            return S
+        """Reduced dense DirNeu systems + the two displacements of a branch in one 2-column solve."""
 
         def _factor(self, Z):
             key = Z.canonical_key(self.system.friction)
@@ -174,7 +153,7 @@ def _condensed_classes():
 
         # -- the two displacements of a branch (loads f1, f2) in one 2-column solve with K
         def _remember_pair(self, Z, w, lam):
-            f = next((g for g, _, ww in self._loads if ww is w), None)
+            f = next((g for g, ww in self._loads if ww is w), None)
             if f is None:
                 return
             if not hasattr(self, "_pairs"):
@@ -190,61 +169,40 @@ def _condensed_classes():
             else:
                 self._pending = (key, lam, f)
 
-        def displacement(self, x_local, f, lam):
-            if self.X_local is not None or self.size > 1 or not hasattr(self, "_pairs"):
-                return super().displacement(x_local, f, lam)
+        def displacement(self, f, lam):
+            if self.size > 1 or not hasattr(self, "_pairs"):
+                return super().displacement(f, lam)
             done = self._done.pop(id(lam), None)
             if done is not None and done[0] is lam:
                 return done[1]
             pair = self._pairs.get(id(lam))
             if pair is None or pair[0] is not lam:
-                return super().displacement(x_local, f, lam)
+                return super().displacement(f, lam)
             _, other, f_other = pair
             rhs = np.column_stack([f - self.B.T @ lam, f_other - self.B.T @ other])
-            U = self._ksolve_multi(rhs)
+            U = self._ksolve_dense(rhs)
             self._done[id(other)] = (other, U[:, 1].copy())
             while len(self._done) > 64:
                 self._done.popitem(last=False)
             return U[:, 0].copy()
 
-        def _ksolve_multi(self, rhs):
-            k = rhs.shape[1]
-            Bm = PETSc.Mat().createDense(((self.nloc, self.n), (PETSc.DECIDE, k)), comm=self.comm)
-            Bm.setUp()
-            Bm.getDenseArray()[:] = rhs
-            Bm.assemble()
-            Xm = Bm.duplicate()
-            self.ksp.getPC().getFactorMatrix().matSolve(Bm, Xm)
-            X = np.array(Xm.getDenseArray(), copy=True).reshape(self.nloc, k)
-            Bm.destroy()
-            Xm.destroy()
-            self.stats.linear_solves += k
-            return X
-
     return TimedCondensedSolver, ImprovedCondensedSolver
 
 
-def make_condensed(system, variant="baseline", store_gib=STORE_GIB):
+def make_condensed(system, variant="baseline"):
     Timed, Improved = _condensed_classes()
     if variant == "baseline":
         return Timed(system)
-    store = system.n * 2 * system.m * 8 <= store_gib * 2**30
-    return Improved(system, store_columns=store)
+    return Improved(system)
 
 
 # ====================================================================== Part A
-def worst_residual(system, path, solver):
-    import cfcontact
-
-    return max((cfcontact.verify(system, y, a, solver=solver).worst() for a, y in path.points), default=0.0)
-
-
 def _method_result(path, system, solver, wall, extra=None):
     mult, at = path.max_multiplicity()
     return {"status": path.status, "transitions": len(path.transitions), "folds": len(path.folds),
             "branches": len(path.branches), "points": len(path.points), "max_multiplicity": mult,
             "alpha_of_max": at, "wall_time": wall, "events": [e.kind for e in path.events],
-            "worst_residual": worst_residual(system, path, solver), **(extra or {})}
+            "worst_residual": demo().worst_residual(system, path, solver), **(extra or {})}
 
 
 def compare_paths(seed, exact, friction) -> dict:
@@ -306,7 +264,7 @@ def part_a(quick=False, frictions=None, log=print) -> list:
         t_imp = time.perf_counter() - t0
         cmp_i = compare_paths(ep, ip, F)
         improved = {"wall_time": t_imp, "transitions": len(ip.transitions),
-                    "worst_residual": worst_residual(system, ip, isolver),
+                    "worst_residual": demo().worst_residual(system, ip, isolver),
                     "same_set_changes_as_exact": cmp_i["same_set_changes"],
                     "max_alpha_difference_to_exact": cmp_i["max_alpha_difference"]}
         res = {"friction": F, "n": system.n, "m": system.m, "assembly_time": t_asm, "seed": seed, "exact": exact,
@@ -357,7 +315,7 @@ def _lean_storage(system, solver, acc):
     SolutionPath.add_point, SolutionPath.add_branch = lean_point, lean_branch
 
 
-def worker_b(nx, ny, friction, variant, lean, store_gib, petsc_options) -> dict:
+def worker_b(nx, ny, friction, variant, lean, petsc_options) -> dict:
     from petsc4py import PETSc
 
     for kv in petsc_options:
@@ -380,11 +338,11 @@ def worker_b(nx, ny, friction, variant, lean, store_gib, petsc_options) -> dict:
                stage="factorization")
     dump()
     t0 = time.perf_counter()
-    solver = make_condensed(system, variant, store_gib)
+    solver = make_condensed(system, variant)
     t_setup = time.perf_counter() - t0
     t_fact = sum(PETSc.Log.Event(e).getPerfInfo()["time"] for e in ("MatLUFactorSym", "MatLUFactorNum"))
     res.update(factorization_time=t_fact, condensation_time=solver.t_schur,
-               setup_other_time=t_setup - t_fact - solver.t_schur, stored_columns=bool(solver.store),
+               setup_other_time=t_setup - t_fact - solver.t_schur, S_in_one_solve=bool(solver.store),
                rss_after_condensation_gib=peak_rss_gib(), stage="path")
     try:
         fm = solver.ksp.getPC().getFactorMatrix()
@@ -419,7 +377,7 @@ def worker_b(nx, ny, friction, variant, lean, store_gib, petsc_options) -> dict:
                profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify")
     if not lean:
         t0 = time.perf_counter()
-        acc["worst_residual"] = worst_residual(system, path, solver)
+        acc["worst_residual"] = demo().worst_residual(system, path, solver)
         acc["verify_time"] = time.perf_counter() - t0
     res.update(worst_residual=acc["worst_residual"], verify_time=acc["verify_time"])
     total = res["assembly_time"] + t_fact + solver.t_schur + res["setup_other_time"] + t_path
@@ -428,11 +386,11 @@ def worker_b(nx, ny, friction, variant, lean, store_gib, petsc_options) -> dict:
     return res
 
 
-def run_size(n_target, friction, variant, store_gib, timeout, petsc_options, log=print) -> dict:
+def run_size(n_target, friction, variant, timeout, petsc_options, log=print) -> dict:
     nx, ny, n_est = mesh_for(n_target)
     lean = n_est > LARGE
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker-b", f"{nx},{ny},{friction!r}", "--variant", variant,
-           "--store-gib", str(store_gib)] + (["--lean"] if lean else [])
+    cmd = [sys.executable, os.path.abspath(__file__), "--worker-b", f"{nx},{ny},{friction!r}",
+           "--variant", variant] + (["--lean"] if lean else [])
     for o in petsc_options:
         cmd += ["--petsc-option", o]
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}), {variant}{', lean' if lean else ''} ...")
@@ -482,7 +440,6 @@ def main(argv=None):
     ap.add_argument("--part", default="AB", help="A, B or AB (default)")
     ap.add_argument("--variant", default="improved", choices=("improved", "baseline"),
                     help="Part B condensed backend (see the module docstring)")
-    ap.add_argument("--store-gib", type=float, default=STORE_GIB, help="memory budget for keeping K^-1 B^T")
     ap.add_argument("--timeout", type=float, default=4 * 3600.0, help="per-size time limit of Part B [s]")
     ap.add_argument("--petsc-option", action="append", default=[],
                     help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
@@ -492,7 +449,7 @@ def main(argv=None):
 
     if args.worker_b:
         nx, ny, F = args.worker_b.split(",")
-        res = worker_b(int(nx), int(ny), float(F), args.variant, args.lean, args.store_gib, args.petsc_option)
+        res = worker_b(int(nx), int(ny), float(F), args.variant, args.lean, args.petsc_option)
         print("BENCH-RESULT " + json.dumps(res), flush=True)
         return 0
 
@@ -522,7 +479,7 @@ def main(argv=None):
         print(f"Part B: exact method, condensed backend ({args.variant}), F = {F:g}", flush=True)
         result["part_b"] = []
         for s in sizes:
-            result["part_b"].append(run_size(s, F, args.variant, args.store_gib, args.timeout, args.petsc_option))
+            result["part_b"].append(run_size(s, F, args.variant, args.timeout, args.petsc_option))
             save()
         print(table_b(result["part_b"]), flush=True)
         print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
