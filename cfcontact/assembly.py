@@ -607,7 +607,6 @@ def _contact_pairs(fem, clamped, rigid, match_tol):
     """Contact pairs (m, 2) (body-1 node, body-2 node or -1), normals and tangents (m, 2)."""
     from scipy.spatial import cKDTree
 
-    groups = fem.groups
     pts = fem.points
     f1 = fem.facet_tag_nodes(CONTACT1)
     if len(f1) == 0:

@@ -1031,9 +1031,6 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
     opts = {k: v for k, v in p.items() if k in PathOptions.__dataclass_fields__}
     solver = get_solver(system)
     runner = _Runner(args, solver, progress, t_start, method, resume["path"] if resume else None)
-    # a plain function: PathOptions.to_dict() deep-copies the callback (a bound method would copy the runner)
-    def callback(pt):
-        return runner.on_point(pt)
 
     t = time.perf_counter()
     with _sigint(runner, progress):
@@ -1041,7 +1038,7 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
             while True:
                 runner.reason = None
                 path = trace_path(system, p["alpha_start"], p["alpha_end"], method=method,
-                                  options=PathOptions(callback=callback, **opts), solver=solver, resume=resume)
+                                  options=PathOptions(callback=runner.on_point, **opts), solver=solver, resume=resume)
                 if path.status != "stopped by callback" or runner.reason is None:
                     break
                 progress.clear()
@@ -1085,6 +1082,16 @@ def cmd_plot(args):
     return EXIT_OK
 
 
+def _render_animation(args, path, ws):
+    from cfcontact import render
+
+    res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
+                                  window_size=ws or (960, 640))
+    if res.note:
+        _warn(args, res.note)
+    _say(args, f"wrote {res.path} ({res.kind}, {res.frames} frames)")
+
+
 def cmd_render(args):
     src, path = _load_saved(args.saved)
     if path.geometry is None:
@@ -1095,11 +1102,7 @@ def cmd_render(args):
     if ws is not None and min(ws) < 16:
         raise CaseError(f"--window-size: width and height must be >= 16, got {ws}")
     if args.animation and args.alpha is None and not args.panel and args.output is None:
-        res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
-                                      window_size=ws or (960, 640))
-        if res.note:
-            _warn(args, res.note)
-        _say(args, f"wrote {res.path} ({res.kind}, {res.frames} frames)")
+        _render_animation(args, path, ws)
         return EXIT_OK
     if args.alpha is None:
         k, alpha = path.max_multiplicity()
@@ -1121,11 +1124,7 @@ def cmd_render(args):
                                window_size=ws or (1200, 800))
     _say(args, f"wrote {out} ({len(sols)} solution(s) at alpha = {alpha:.10g})")
     if args.animation:
-        res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
-                                      window_size=ws or (960, 640))
-        if res.note:
-            _warn(args, res.note)
-        _say(args, f"wrote {res.path} ({res.kind}, {res.frames} frames)")
+        _render_animation(args, path, ws)
     return EXIT_OK
 
 

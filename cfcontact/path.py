@@ -22,19 +22,18 @@ import os
 import shutil
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Callable, Optional
 
 import numpy as np
 import scipy.sparse as sp
 
-from cfcontact.errors import InputError, PathError
+from cfcontact.errors import InputError
 from cfcontact.ssnm import (
     InactiveSets,
     Solution,
     get_solver,
     indicators,
-    inactive_sets,
     is_fixed_point,
     ssnm,
 )
@@ -87,9 +86,8 @@ class PathOptions:
             raise InputError("invalid path options: " + "; ".join(bad))
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("callback")
-        return d
+        """The options without the callback (not copied: it may hold MPI/PETSc handles)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "callback"}
 
 
 @dataclass
@@ -480,7 +478,7 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
         unknown = sorted(set(kwargs) - valid)
         if unknown:
             raise InputError(f"unknown path option(s) {unknown}; valid: {sorted(valid)}")
-        opts = PathOptions(**{**asdict(PathOptions()), **{k: getattr(opts, k) for k in valid}, **kwargs})
+        opts = replace(opts, **kwargs)
     opts.validate()
     if method == "exact":
         if resume is not None:
@@ -526,36 +524,17 @@ def branch_endpoints(system, solver, sets):
     return solver.solve(sets, f1), solver.solve(sets, f2)
 
 
-def _select_toggle(system, y, sets):
-    """The seed's branching indicator (17)-(18): the smallest |indicator| whose toggle changes Z.
+def _ranked_toggles(system, y, sets, limit=8):
+    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``.
 
     Toggles that cannot change DirNeu's solution (the tangential set of an open node, or of a
-    node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns (value, node, kind, Z_new).
+    node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns [(value, node, kind, Z_new)].
     """
     a, bp, bm = indicators(system, y)
     if np.any(sets.nu):
         # The tangential sets of an open node do not change DirNeu's solution, so they go stale
         # along a branch (T u may change sign).  Refresh them from y, so that closing the node
         # (toggling I_nu) starts it slipping in the direction of its current T u.
-        tm = np.where(sets.nu, bm < 0, sets.tm)
-        sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
-    best = None
-    for kind, vals in (("nu", a), ("tp", bp), ("tm", bm)):
-        for i in np.argsort(np.abs(vals), kind="stable"):
-            new = toggle(sets, int(i), kind)
-            if new.equivalent(sets, system.friction):
-                continue
-            if best is None or abs(vals[i]) < best[0]:
-                best = (float(abs(vals[i])), int(i), kind, new)
-            break
-    return best
-
-
-def _ranked_toggles(system, y, sets, limit=8):
-    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``."""
-    a, bp, bm = indicators(system, y)
-    if np.any(sets.nu):
-        # refresh the stale tangential sets of open nodes from y (see _select_toggle)
         tm = np.where(sets.nu, bm < 0, sets.tm)
         sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
     vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])

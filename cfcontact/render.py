@@ -617,7 +617,7 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
         _check_solution(geometry, s)
     mag = auto_magnification(geometry, us) if magnification is None else float(magnification)
     ext = os.path.splitext(filename)[1].lower()
-    kind, note, writer = "png-frames", "", None
+    kind, note = "png-frames", ""
     if ext == ".gif":
         if _importable("PIL.Image") or _importable("imageio"):
             kind = "gif"

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -243,7 +243,7 @@ class DirNeuSolver:
         self.n, self.m = system.n, system.m
         self.r0, self.r1 = system.K.getOwnershipRange()
         self.last = self.rank == self.size - 1
-        n, m = self.n, self.m
+        m = self.m
         self.K_local = linalg.local_csr(system.K)
         N, T = system.contact_maps()
         self.N, self.T = N, T
@@ -258,7 +258,7 @@ class DirNeuSolver:
     # -- assembly of J(Z)
     def jacobian_lower(self, Z: InactiveSets) -> sp.csr_matrix:
         """The 2m multiplier rows of J(Z) (method.md (5)) as a SciPy matrix (2m x (n+2m))."""
-        n, m, rho = self.n, self.m, self.system.rho
+        m, rho = self.m, self.system.rho
         F = self.system.friction_vector
         A_nu = (~Z.nu).astype(float)
         A_t = (~Z.it).astype(float)
@@ -332,7 +332,7 @@ class DirNeuSolver:
         self.stats.linear_solves += 1
         reason = ksp.getConvergedReason()
         local = np.array(x.getArray(readonly=True), copy=True)
-        y = local if self.size == 1 else np.concatenate(self.comm.allgather(local))
+        y = linalg.concat_ranks(self.comm, local)
         if reason < 0 or not np.all(np.isfinite(y)):
             raise SingularSystemError(
                 f"DirNeu(Z) could not be solved (KSP reason {reason}); J(Z) is singular for {Z!r} — "
@@ -342,7 +342,7 @@ class DirNeuSolver:
     def K_times(self, u: np.ndarray) -> np.ndarray:
         """K u as a whole vector (for residual checks)."""
         local = self.K_local @ u
-        return local if self.size == 1 else np.concatenate(self.comm.allgather(local))
+        return linalg.concat_ranks(self.comm, local)
 
     def destroy(self):
         for objs in self._ksps.values():

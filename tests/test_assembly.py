@@ -1,7 +1,6 @@
 """FEM assembly layer: each test compares with an independent reference."""
 
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -330,32 +329,15 @@ def test_bad_material_and_loads():
 
 
 # ----------------------------------------------------------------------- MPI
-def _mpirun():
-    return shutil.which("mpirun") or shutil.which("mpiexec")
-
-
 @pytest.mark.mpi
-def test_mpi_matches_serial(tmp_path):
-    mpirun = _mpirun()
-    if mpirun is None:
-        pytest.skip("mpirun not found")
+def test_mpi_matches_serial(tmp_path, run_mpi):
     sys.path.insert(0, HERE)
     try:
         import mpi_assembly_script as script
     finally:
         sys.path.remove(HERE)
     out = tmp_path / "mpi.npz"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PRTE_"))}
-    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1", PRTE_MCA_rmaps_default_mapping_policy=":oversubscribe",
-               PYTHONPATH=os.pathsep.join([ROOT] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
-    cmd = [mpirun, "-n", "2"]
-    version = subprocess.run([mpirun, "--version"], capture_output=True, text=True, env=env)
-    if "open mpi" in (version.stdout + version.stderr).lower() or "open-mpi" in (version.stdout + version.stderr).lower():
-        cmd.insert(1, "--allow-run-as-root")  # Open MPI refuses root otherwise (containers)
-    proc = subprocess.run(cmd + [sys.executable, os.path.join(HERE, "mpi_assembly_script.py"), str(out)],
-                          env=env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    run_mpi(2, os.path.join(HERE, "mpi_assembly_script.py"), str(out), timeout=300)
     par = np.load(out)
     assert int(par["size"]) == 2
     for name, kwargs in script.cases().items():
