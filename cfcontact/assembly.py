@@ -46,7 +46,7 @@ CONTACT1, CONTACT2 = 10, 20
 #: VTK order of a dolfinx quadrilateral (tensor-product order -> counter-clockwise)
 _QUAD_TO_VTK = np.array([0, 1, 3, 2])
 
-__all__ = ["assemble_contact_system", "full_stiffness", "lame_parameters"]
+__all__ = ["assemble_contact_system", "check_material", "full_stiffness", "lame_parameters", "material_per_body"]
 
 
 # ======================================================================= input
@@ -68,6 +68,53 @@ def lame_parameters(E, nu, plane="strain"):
     if plane == "stress":
         return 2.0 * lam * mu / (lam + 2.0 * mu), mu
     raise InputError(f"plane must be 'strain' or 'stress', got {plane!r}")
+
+
+def _material_items(value, what):
+    """[(body spec or None, value)] of a material parameter: a number or {body: number}."""
+    if isinstance(value, Mapping):
+        if not value:
+            raise InputError(f"{what} is an empty dict; give a number or {{body name/number: value}}")
+        return list(value.items())
+    return [(None, value)]
+
+
+def check_material(E, nu, plane="strain"):
+    """Validate E and nu (numbers or dicts {body: number}) and ``plane`` before any collective work."""
+    for e_body, e in _material_items(E, "E"):
+        for n_body, n in _material_items(nu, "nu"):
+            try:
+                lame_parameters(e, n, plane)
+            except InputError as exc:
+                where = [f"{w}[{b!r}]" for w, b in (("E", e_body), ("nu", n_body)) if b is not None]
+                raise InputError(f"{exc}" + (f" (in {', '.join(where)})" if where else "")) from None
+
+
+def material_per_body(E, nu, plane, groups, bodies):
+    """{body number: (lambda, mu)} for the given bodies; E, nu numbers or {body name/number: value}.
+
+    A dict must give a value for every body (GeometryError names a missing or unknown body).
+    """
+    def resolve(value, what):
+        if not isinstance(value, Mapping):
+            return {int(b): value for b in bodies}
+        out = {}
+        for spec, val in value.items():
+            out[_resolve_tag(spec, groups, 2, what)] = val
+        missing = [int(b) for b in bodies if int(b) not in out]
+        if missing:
+            raise GeometryError(f"{what} gives no value for body {', '.join(_tag_label(groups, 2, b) for b in missing)}; "
+                                f"give one per body ({_describe(groups, 2)}) or a single number")
+        return out
+
+    e_of, nu_of = resolve(E, "E"), resolve(nu, "nu")
+    return {int(b): lame_parameters(e_of[int(b)], nu_of[int(b)], plane) for b in bodies}
+
+
+def _material_meta(value, groups):
+    if isinstance(value, Mapping):
+        return {_tag_label(groups, 2, _resolve_tag(k, groups, 2, "material")): float(v) for k, v in value.items()}
+    return float(value)
 
 
 def _vector2(value, what):
@@ -322,20 +369,28 @@ class _FemModel:
 
     # -------------------------------------------------------------- assembly
     def stiffness_triplets(self, E, nu, plane):
-        """Owned rows of K as (node_r, comp_r, node_c, comp_c, value), compressed node indices."""
-        lam, mu = lame_parameters(E, nu, plane)
+        """Owned rows of K as (node_r, comp_r, node_c, comp_c, value), compressed node indices.
+
+        ``E`` and ``nu``: numbers, or dicts {body name/number: value} (see :func:`material_per_body`).
+        """
         V = self.V
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-        lam_c = compat.constant(self.mesh, lam)
-        mu_c = compat.constant(self.mesh, mu)
 
         def eps(w):
             return ufl.sym(ufl.grad(w))
 
-        def sigma(w):
-            return 2.0 * mu_c * eps(w) + lam_c * ufl.tr(eps(w)) * ufl.Identity(2)
+        def energy(lam, mu, measure):
+            lam_c = compat.constant(self.mesh, lam)
+            mu_c = compat.constant(self.mesh, mu)
+            sigma = 2.0 * mu_c * eps(u) + lam_c * ufl.tr(eps(u)) * ufl.Identity(2)
+            return ufl.inner(sigma, eps(v)) * measure
 
-        a = ufl.inner(sigma(u), eps(v)) * ufl.dx
+        per_body = material_per_body(E, nu, plane, self.groups, np.unique(self.cell_body))
+        if len(set(per_body.values())) == 1:
+            a = energy(*next(iter(per_body.values())), ufl.dx)
+        else:
+            dx = ufl.Measure("dx", domain=self.mesh, subdomain_data=self.ct)
+            a = sum(energy(lam, mu, dx(int(body))) for body, (lam, mu) in sorted(per_body.items()))
         A = compat.assemble_matrix(compat.form(a))
         ai, aj, av = A.getValuesCSR()
         r0, r1 = A.getOwnershipRange()
@@ -447,7 +502,8 @@ def assemble_contact_system(
     ----------
     model_or_path : the gmsh model (``gmsh.model``, meshed, on rank 0; None means
         ``gmsh.model``) or the path of a ``.msh`` file.  Physical groups per DESIGN.md.
-    E, nu : Young's modulus and Poisson's ratio (default steel-like 2.1e11 Pa, 0.3)
+    E, nu : Young's modulus and Poisson's ratio (default steel-like 2.1e11 Pa, 0.3): numbers, or
+        dicts ``{body name/number: value}`` with one value per body (bimaterial contact)
     plane : ``"strain"`` (default) or ``"stress"`` (thickness 1)
     clamp : boundary pieces (1-D group names or numbers) where u = 0 (both components)
     tractions1, tractions2 : ``{boundary piece: (tx, ty)}`` surface tractions of the
@@ -468,7 +524,7 @@ def assemble_contact_system(
     """
     t_start = time.perf_counter()
     comm = MPI.COMM_WORLD if comm is None else comm
-    lame_parameters(E, nu, plane)  # validate before any collective work
+    check_material(E, nu, plane)  # validate before any collective work
     fem = _FemModel(model_or_path, comm)
     groups = fem.groups
     P = len(fem.points)
@@ -580,8 +636,8 @@ def assemble_contact_system(
     meta = {
         "source": fem.source,
         "cell_type": fem.cell_type,
-        "E": float(E),
-        "nu": float(nu),
+        "E": _material_meta(E, groups),
+        "nu": _material_meta(nu, groups),
         "plane": plane,
         "clamp": [label[t] for t in clamp_tags],
         "tractions1": {label[t]: vec.tolist() for t, vec in trac[0].items()},

@@ -286,6 +286,33 @@ def test_msh_file_matches_model(tmp_path):
     assert A.friction == 0.4 and A.rho == pytest.approx(B.rho, rel=1e-12)
 
 
+def test_material_per_body():
+    """The bodies share no nodes, so K is block diagonal by body: each block must equal the block of a
+    one-material model with that body's E and nu."""
+    kw = dict(nx=4, ny=2, cell="triangle")
+    mixed = two_blocks(E={"body1": 2.0e11, 2: 5.0e9}, nu={"body1": 0.3, "body2": 0.45}, **kw)
+    one = two_blocks(E=2.0e11, nu=0.3, **kw)
+    two = two_blocks(E=5.0e9, nu=0.45, **kw)
+    Km, Ko, Kt = (s.to_scipy()[0].toarray() for s in (mixed, one, two))
+    # DOFs of body 1: rows with a coupling to a body-1 contact node's DOF; use the rows where one == mixed
+    g = mixed.geometry
+    nodes1 = np.unique(g.cells[g.cell_body == 1])
+    b1 = np.flatnonzero(np.isin(g.dof_node, nodes1))
+    b2 = np.flatnonzero(~np.isin(g.dof_node, nodes1))
+    assert b1.size and b2.size
+    np.testing.assert_array_equal(Km[np.ix_(b1, b2)], 0.0)
+    np.testing.assert_allclose(Km[np.ix_(b1, b1)], Ko[np.ix_(b1, b1)], rtol=0, atol=1e-12 * np.abs(Ko).max())
+    np.testing.assert_allclose(Km[np.ix_(b2, b2)], Kt[np.ix_(b2, b2)], rtol=0, atol=1e-12 * np.abs(Kt).max())
+    assert mixed.info["E"] == {"body1=1": 2.0e11, "body2=2": 5.0e9}
+    # every body needs a value; unknown bodies are named
+    with pytest.raises(GeometryError, match="body2=2"):
+        two_blocks(nx=2, ny=1, E={"body1": 1e9})
+    with pytest.raises(GeometryError, match="'body3'"):
+        two_blocks(nx=2, ny=1, nu={"body1": 0.3, "body2": 0.3, "body3": 0.3})
+    with pytest.raises(InputError, match=r"nu\['body2'\]"):
+        two_blocks(nx=2, ny=1, nu={"body1": 0.3, "body2": 0.6})
+
+
 # ----------------------------------------------------------------- bad input
 def test_unknown_tag_lists_valid_tags():
     with pytest.raises(GeometryError) as exc:
