@@ -9,11 +9,13 @@ DirNeu(Z, f) (method.md (9)) is then the dense system M(Z) lam = r(Z, w) with, p
     normal row     : A_nu: (S lam)_i = w_i            I_nu: lam_n,i = 0
     tangential row : A_t : (S lam)_{m+i} = w_{m+i}    I_t : lam_t,i - F (1_{I_t+} - 1_{I_t-}) lam_n,i = 0
 
-followed by u = K^-1 f - (K^-1 B^T) lam.  :class:`CondensedSolver` factors K once (PETSc KSP,
-MUMPS when available; works under MPI), forms K^-1 B^T with one multi-right-hand-side solve
-(``MatMatSolve`` on a dense matrix of 2m columns), keeps S and (when it fits in memory) the
-columns K^-1 B^T, caches K^-1 f and w for the loads seen (f1, f2), and LU-factors M(Z) per
-inactive-set combination (dense, cached).  It has the interface of
+followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP,
+MUMPS when available; works under MPI), forms K^-1 B^T with multi-right-hand-side solves
+(``MatMatSolve`` on dense blocks of columns) only to get S, caches w for the loads seen
+(f1, f2), and LU-factors the reduced system (free multipliers only, see ``_factor``) per
+inactive-set combination (dense, cached).  :meth:`CondensedSolver.displacements` forms u for
+many (alpha, lam) at once (one multi-RHS solve per block): the exact method stores only the
+multipliers of a branch and forms u on demand (:class:`cfcontact.path.SolutionPath`).  It has the interface of
 :class:`cfcontact.ssnm.DirNeuSolver` (``solve(Z, f)``, ``stats``, ``K_times``), so
 ``ssnm(..., solver=CondensedSolver(system))`` and ``trace_path(..., solver=...)`` use it.
 Cost: O(n m) memory for K^-1 B^T; it pays off for small m (tens to a few hundred nodes).
@@ -21,7 +23,9 @@ Cost: O(n m) memory for K^-1 B^T; it pays off for small m (tens to a few hundred
 
 from __future__ import annotations
 
+import ctypes
 import logging
+import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Optional
@@ -41,6 +45,40 @@ log = logging.getLogger(__name__)
 #: Form K^-1 B^T (n x 2m doubles) for S in one multi-RHS solve when it has at most this many
 #: entries per rank; otherwise in column blocks of at most this many entries.
 STORE_LIMIT = 50_000_000
+#: By default S comes from MUMPS' Schur complement when K^-1 B^T (n x 2m) has at least this
+#: many entries (below it the 2m solves are cheap and slightly more accurate).
+SCHUR_MIN_ENTRIES = 10_000_000
+
+
+_getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
+_LIB = []
+
+
+def _petsc_lib():
+    """The PETSc shared library petsc4py uses (ctypes), with the few signatures needed here."""
+    if not _LIB:
+        path = None
+        with open("/proc/self/maps") as fh:
+            for line in fh:
+                name = line.split()[-1]
+                if "/libpetsc" in name and ".so" in name:
+                    path = name
+                    break
+        if path is None:
+            raise RuntimeError("libpetsc is not among the loaded libraries")
+        lib = ctypes.CDLL(path)
+        vp = ctypes.c_void_p
+        lib.MatFactorSetSchurIS.argtypes = [vp, vp]
+        lib.MatFactorGetSchurComplement.argtypes = [vp, ctypes.POINTER(vp), ctypes.POINTER(ctypes.c_int)]
+        lib.MatFactorRestoreSchurComplement.argtypes = [vp, ctypes.POINTER(vp), ctypes.c_int]
+        lib.MatDenseGetLDA.argtypes = [vp, ctypes.POINTER(_PetscIntC)]
+        lib.MatDenseGetArrayRead.argtypes = [vp, ctypes.POINTER(ctypes.POINTER(ctypes.c_double))]
+        lib.MatDenseRestoreArrayRead.argtypes = [vp, ctypes.POINTER(ctypes.POINTER(ctypes.c_double))]
+        _LIB.append(lib)
+    return _LIB[0]
+
+
+_PetscIntC = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
 
 
 @dataclass
@@ -65,14 +103,20 @@ class CondensedSolver:
     system : ContactSystem
     options : SolverOptions (prefix: the KSP of K uses ``<prefix>K_``; solver_type; cache =
         how many dense LU factorizations of M(Z) to keep, at least 64)
-    store_columns : form all of K^-1 B^T at once when forming S (default: when it has at most
-        STORE_LIMIT entries per rank), else in column blocks.  It is never kept: u is always
+    schur : form S from the Schur complement of K on the contact DOFs, which MUMPS computes
+        during the factorization (about the cost of the factorization instead of 2m solves).
+        Default: when possible (one rank, MUMPS) and worth it (K^-1 B^T would have at least
+        SCHUR_MIN_ENTRIES entries); False: always by solves; True: required.  S from the
+        Schur complement is slightly less accurate (relative violations of (1)-(3) up to
+        ~1e-9 instead of ~1e-11 on the demo mesh).
+    store_columns : when S is formed by solves: all of K^-1 B^T at once (default: when it has
+        at most STORE_LIMIT entries per rank), else in column blocks.  It is never kept: u is always
         K^-1 (f - B^T lam) by one sparse solve, since K^-1 f - (K^-1 B^T) lam loses accuracy
         (contact forces nearly cancel the load; relative residual 4e-8 measured at n = 1.2e5).
     """
 
     def __init__(self, system: ContactSystem, options: Optional[SolverOptions] = None,
-                 store_columns: Optional[bool] = None):
+                 store_columns: Optional[bool] = None, schur: Optional[bool] = None):
         self.system = system
         self.options = options or SolverOptions()
         self.stats = CondensedStats()
@@ -90,7 +134,10 @@ class CondensedSolver:
         self.solver_type = self.options.solver_type or _default_solver_type(self.size)
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
         self._loads: list = []  # [(f, w)]
+        #: wall times [s] of the set-up: "factorization" (KSP set-up of K), "condensation" (S)
+        self.timings = {}
         # ---- factor K
+        t0 = time.perf_counter()
         ksp = PETSc.KSP().create(self.comm)
         ksp.setOperators(system.K)
         ksp.setType("preonly")
@@ -100,10 +147,20 @@ class CondensedSolver:
             pc.setFactorSolverType(self.solver_type)
         ksp.setOptionsPrefix(self.options.prefix + "K_")
         ksp.setFromOptions()
-        if self.solver_type == "mumps" and not PETSc.Options().hasName(self.options.prefix + "K_mat_mumps_icntl_14"):
-            # MUMPS' default workspace estimate (ICNTL(14) = 20%) is too small for dense couplings
+        self._schur_is = None
+        self._schur_dofs = None
+        if pc.getFactorSolverType() == "mumps":
             pc.setFactorSetUpSolverType()
-            pc.getFactorMatrix().setMumpsIcntl(14, 100)
+            fm = pc.getFactorMatrix()
+            if not PETSc.Options().hasName(self.options.prefix + "K_mat_mumps_icntl_14"):
+                # MUMPS' default workspace estimate (ICNTL(14) = 20%) is too small for dense couplings
+                fm.setMumpsIcntl(14, 100)
+            if schur or (schur is None and self.size == 1 and self.n * 2 * m >= SCHUR_MIN_ENTRIES):
+                if self.size > 1:
+                    raise InputError("schur=True: PETSc's MUMPS interface has no parallel Schur complement")
+                self._request_schur(fm, required=bool(schur))
+        elif schur:
+            raise InputError(f"schur=True needs MUMPS as the direct solver of K, not {pc.getFactorSolverType()!r}")
         try:
             ksp.setUp()
         except PETSc.Error as exc:
@@ -112,9 +169,75 @@ class CondensedSolver:
         self.stats.factorizations += 1
         self.ksp = ksp
         self._x, self._b = system.K.createVecs()
-        # ---- K^-1 B^T and S
+        self.timings["factorization"] = time.perf_counter() - t0
+        # ---- S = B K^-1 B^T
+        t0 = time.perf_counter()
         self.store = (self.nloc * 2 * m <= STORE_LIMIT) if store_columns is None else bool(store_columns)
-        self.S = self._schur()
+        S = self._schur_from_factor() if self._schur_dofs is not None else None
+        if S is None and schur:
+            raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
+        #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs) or "solves" (2m columns)
+        self.condensation = "schur" if S is not None else "solves"
+        self.S = S if S is not None else self._schur()
+        self.timings["condensation"] = time.perf_counter() - t0
+
+    # ------------------------------------------------------- Schur complement
+    def _request_schur(self, fm, required=False):
+        """Ask MUMPS for the Schur complement of K on the contact DOFs (serial only: PETSc's MUMPS
+        interface does not support parallel Schur complements).  petsc4py 3.18 does not wrap
+        MatFactorSetSchurIS, so it is called through ctypes; any failure falls back to solves."""
+        B = sp.csc_matrix(self.B)
+        dofs = np.flatnonzero(np.diff(B.indptr) > 0)
+        if self.m == 0 or dofs.size == 0 or dofs.size >= self.n:
+            if required:
+                raise InputError("schur=True needs contact DOFs and at least one other DOF")
+            return
+        try:
+            lib = _petsc_lib()
+            is_ = PETSc.IS().createGeneral(dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+            err = lib.MatFactorSetSchurIS(ctypes.c_void_p(fm.handle), ctypes.c_void_p(is_.handle))
+            if err:
+                raise RuntimeError(f"MatFactorSetSchurIS returned {err}")
+        except Exception as exc:  # no usable libpetsc: solves instead
+            if required:
+                raise InputError(f"schur=True: cannot request the Schur complement from MUMPS ({exc})") from exc
+            log.info("MUMPS Schur complement unavailable (%s); S is formed by solves", exc)
+            return
+        self._schur_is, self._schur_dofs = is_, dofs
+
+    def _schur_from_factor(self) -> Optional[np.ndarray]:
+        """S = B_c S_c^-1 B_c^T with S_c the Schur complement of K on the contact DOFs c:
+        (K^-1)_cc = S_c^-1.  Read right after the factorization (PETSc factors S_c in place at
+        the first solve)."""
+        lib = _petsc_lib()
+        vp = ctypes.c_void_p
+        fm = self.ksp.getPC().getFactorMatrix()
+        Smat, status = vp(), ctypes.c_int()
+        k = self._schur_dofs.size
+        if lib.MatFactorGetSchurComplement(vp(fm.handle), ctypes.byref(Smat), ctypes.byref(status)) or status.value:
+            log.info("MatFactorGetSchurComplement failed (status %s); S is formed by solves", status.value)
+            return None
+        try:
+            lda = _PetscIntC()
+            arr = ctypes.POINTER(ctypes.c_double)()
+            if lib.MatDenseGetLDA(Smat, ctypes.byref(lda)) or lib.MatDenseGetArrayRead(Smat, ctypes.byref(arr)):
+                return None
+            try:
+                Sc = np.ctypeslib.as_array(arr, shape=(k, int(lda.value)))[:, :k].T.copy()  # column-major
+            finally:
+                lib.MatDenseRestoreArrayRead(Smat, ctypes.byref(arr))
+        finally:
+            lib.MatFactorRestoreSchurComplement(vp(fm.handle), ctypes.byref(Smat), status.value)
+        if not np.all(np.isfinite(Sc)):
+            return None
+        Sc = 0.5 * (Sc + Sc.T)
+        Bc = self.B[:, self._schur_dofs].toarray()
+        try:
+            X = sla.cho_solve(sla.cho_factor(Sc, check_finite=False), Bc.T, check_finite=False)
+        except np.linalg.LinAlgError:
+            X = sla.solve(Sc, Bc.T, check_finite=False)
+        S = Bc @ X
+        return 0.5 * (S + S.T)
 
     # ----------------------------------------------------------- K solves
     def _ksolve(self, rhs_local: np.ndarray) -> np.ndarray:
@@ -190,6 +313,26 @@ class CondensedSolver:
             self._loads.pop(0)
         return w
 
+    def load_data_many(self, fs) -> np.ndarray:
+        """w_j = B K^-1 f_j for the loads fs (2m x k), the uncached ones in one multi-RHS solve."""
+        fs = [np.asarray(f, dtype=float) for f in fs]
+        cached = {}
+        for j, f in enumerate(fs):
+            for g, w in self._loads:
+                if g is f or np.array_equal(g, f):
+                    cached[j] = w
+                    break
+        todo = [j for j in range(len(fs)) if j not in cached]
+        if todo:
+            X = self._ksolve_dense(np.column_stack([fs[j][self.r0:self.r1] for j in todo]))
+            Wn = self._allreduce(np.ascontiguousarray(self.B_local @ X))
+            for c, j in enumerate(todo):
+                cached[j] = Wn[:, c].copy()
+                self._loads.append((np.array(fs[j], copy=True), cached[j]))
+            while len(self._loads) > 4:
+                self._loads.pop(0)
+        return np.column_stack([cached[j] for j in range(len(fs))]) if fs else np.zeros((2 * self.m, 0))
+
     # ------------------------------------------------------------ dense part
     def matrix(self, Z: InactiveSets) -> np.ndarray:
         """M(Z) (2m x 2m) of the condensed DirNeu system."""
@@ -214,33 +357,158 @@ class CondensedSolver:
         return r
 
     def _factor(self, Z: InactiveSets):
+        """LU of the reduced DirNeu system of Z (cached per canonical Z).
+
+        Only the free multipliers are unknowns: lam_n of closed nodes and lam_t of sticking
+        nodes, with their equations (S lam)_i = w_i as rows.  lam_n = lam_t = 0 on open nodes,
+        and lam_t,i = +-F lam_n,i of a slipping node is substituted into the lam_n,i column.
+        So each branch factors a k x k matrix, k <= 2m, instead of the 2m x 2m M(Z) of
+        :meth:`matrix` (which is kept as the reference form)."""
         key = Z.canonical_key(self.system.friction)
-        if key in self._lu:
+        hit = self._lu.get(key)
+        if hit is not None:
             self._lu.move_to_end(key)
-            return self._lu[key]
-        M = self.matrix(Z)
-        lu, piv = sla.lu_factor(M, check_finite=False) if M.size else (M, np.zeros(0, dtype=np.int32))
-        d = np.abs(np.diag(lu))
-        if d.size and (not np.all(np.isfinite(d)) or d.min() <= 1e-14 * max(d.max(), 1e-300)):
-            raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for {Z!r}")
+            return hit
+        return self._factor_reduced(key, Z.nu, Z.tp, Z.tm)
+
+    def _factor_reduced(self, key, nu, tp, tm):
+        m = self.m
+        act_n = ~nu
+        it = tp | tm
+        closed = act_n.nonzero()[0]
+        rows = np.concatenate([closed, m + (~it).nonzero()[0]])  # = the free unknowns
+        slip = (it & act_n).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
+        coef = self.F[slip] * (tp[slip].astype(float) - tm[slip].astype(float))
+        Sr = self.S.take(rows, axis=0)
+        M = Sr.take(rows, axis=1)
+        if slip.size:
+            pos = np.searchsorted(closed, slip)  # column of lam_n,i in the reduced system
+            M[:, pos] += Sr.take(m + slip, axis=1) * coef
+        if M.size:
+            lu, piv, info = _getrf(M, overwrite_a=True)
+            d = np.abs(lu.diagonal())
+            if info < 0 or not np.isfinite(d).all() or d.min() <= 1e-14 * max(d.max(), 1e-300):
+                raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for "
+                                          f"{InactiveSets(nu, tp, tm)!r}")
+        else:
+            lu, piv = M, np.zeros(0, dtype=np.int32)
         self.stats.dense_factorizations += 1
-        self._lu[key] = (lu, piv)
+        entry = (lu, piv, rows, slip, coef)
+        self._lu[key] = entry
         while len(self._lu) > max(64, self.options.cache):
             self._lu.popitem(last=False)
-        return self._lu[key]
+        return entry
 
     def multipliers(self, Z: InactiveSets, w: np.ndarray) -> np.ndarray:
         """lam = (lam_n, lam_t) of DirNeu(Z, f) from w = B K^-1 f."""
         if self.m == 0:
             return np.zeros(0)
-        lu = self._factor(Z)
+        return self._solve_reduced(self._factor(Z), w)
+
+    def multipliers_many(self, Z: InactiveSets, W: np.ndarray, key: Optional[bytes] = None) -> np.ndarray:
+        """lam_j of DirNeu(Z, f_j) for the columns w_j = B K^-1 f_j of W (2m x k): one LU, one
+        k-column triangular solve.  ``key``: a caller's cache key standing for Z's canonical key."""
+        if self.m == 0:
+            return np.zeros((0, W.shape[1]))
+        if key is None:
+            entry = self._factor(Z)
+        else:
+            entry = self._lu.get(key)
+            if entry is None:
+                entry = self._factor_reduced(key, Z.nu, Z.tp, Z.tm)
+            else:
+                self._lu.move_to_end(key)
+        lu, piv, rows, slip, coef = entry
+        self.stats.dense_solves += W.shape[1]
+        lam = np.zeros((2 * self.m, W.shape[1]))
+        if rows.size:
+            lam[rows] = _getrs(lu, piv, W.take(rows, axis=0))[0]
+        lam[self.m + slip] = coef[:, None] * lam[slip]
+        return lam
+
+    def indicators(self, lam: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The indicators (17) stacked (a, bp, bm) (3m, or 3m x k for columns) of DirNeu's
+        lam for the load with w = B K^-1 f, from B u = w - S lam (no u needed)."""
+        m, rho = self.m, self.system.rho
+        nz = (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
+        if 2 * nz.size < lam.shape[0]:  # open nodes carry no force: only the columns of S of the others
+            Bu = w - self.S.take(nz, axis=0).T @ lam[nz]  # S is symmetric: rows are contiguous
+        else:
+            Bu = w - self.S @ lam
+        a = lam[:m] + rho * Bu[:m]
+        b = lam[m:] + rho * Bu[m:]
+        F = self.F if lam.ndim == 1 else self.F[:, None]
+        return np.concatenate([a, b - F * lam[:m], b + F * lam[:m]])
+
+    def ssnm(self, f: np.ndarray, y0: np.ndarray, tol: float, max_iter: int, alpha: float):
+        """SSNM (:func:`cfcontact.ssnm.ssnm`) in the multipliers: the sets come from the
+        indicators lam + rho (w - S lam), the stopping test compares successive multipliers
+        (they determine u), and u is formed once, for the result."""
+        from cfcontact.errors import ConvergenceError
+        from cfcontact.ssnm import Solution, inactive_sets
+
+        system, n, m = self.system, self.n, self.m
+        w = self.load_data(f)
+        Z = inactive_sets(system, y0)
+        lam_prev = np.asarray(y0[n:], dtype=float)
+        for k in range(1, int(max_iter) + 1):
+            lam = self.multipliers(Z, w)
+            self.stats.ssnm_iterations += 1
+            if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):
+                y = np.concatenate([self.displacement(f, lam), lam])
+                return Solution.from_y(system, y, alpha, iterations=k)
+            g = self.indicators(lam, w)
+            Z = InactiveSets(g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0)
+            lam_prev = lam
+        y = np.concatenate([self.displacement(f, lam_prev), lam_prev])
+        raise ConvergenceError(f"SSNM did not converge in {max_iter} iterations at alpha={alpha}",
+                               iterations=max_iter, last=Solution.from_y(system, y, alpha, iterations=max_iter))
+
+    def _solve_reduced(self, entry, w):
+        lu, piv, rows, slip, coef = entry
         self.stats.dense_solves += 1
-        return sla.lu_solve(lu, self.rhs(Z, w), check_finite=False)
+        lam = np.zeros(2 * self.m)
+        if rows.size:
+            lam[rows] = _getrs(lu, piv, w[rows])[0]
+        lam[self.m + slip] = coef * lam[slip]
+        return lam
 
     def displacement(self, f: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """u = K^-1 (f - B^T lam), whole on every rank (one sparse solve)."""
         u_loc = self._ksolve(f[self.r0:self.r1] - self.B_local.T @ lam)
         return linalg.concat_ranks(self.comm, u_loc)
+
+    def displacements(self, lams: np.ndarray, alphas) -> np.ndarray:
+        """u_j = K^-1 (f(alpha_j) - B^T lam_j) on the system's load path f(alpha) = (1 - alpha) f1
+        + alpha f2, for the columns lam_j of ``lams`` (2m x k): whole (n x k) on every rank.
+
+        One multi-right-hand-side solve (MatMatSolve) per block of columns (at most STORE_LIMIT
+        entries per rank).  Never K^-1 f - (K^-1 B^T) lam, which loses accuracy (contact
+        forces nearly cancel the load).  Collective under MPI."""
+        lams = np.asarray(lams, dtype=float).reshape(2 * self.m, -1)
+        alphas = np.asarray(alphas, dtype=float).ravel()
+        k = alphas.size
+        if lams.shape[1] != k:
+            raise InputError(f"displacements: {lams.shape[1]} multiplier columns but {k} alphas")
+        if getattr(self, "_f_local", None) is None:
+            f1, f2 = self.system.loads_numpy()
+            self._f_local = (np.array(f1[self.r0:self.r1]), np.array(f2[self.r0:self.r1]))
+        f1l, f2l = self._f_local
+        block = max(1, int(STORE_LIMIT // max(self.nloc, 1)))
+        if self.size > 1:
+            from mpi4py import MPI
+
+            block = self.comm.allreduce(block, op=MPI.MIN)
+        out = np.empty((self.n, k))
+        BT = self.B_local.T.tocsr()
+        for c0 in range(0, k, block):
+            sl = slice(c0, min(k, c0 + block))
+            a = alphas[sl]
+            rhs = np.outer(f1l, 1.0 - a) + np.outer(f2l, a)
+            rhs -= BT @ lams[:, sl]
+            U = self._ksolve_dense(np.asfortranarray(rhs))
+            out[:, sl] = linalg.concat_ranks(self.comm, U)
+        return out
 
     # ------------------------------------------------------------ interface
     def solve(self, Z: InactiveSets, f) -> np.ndarray:
@@ -264,8 +532,9 @@ class CondensedSolver:
         return linalg.concat_ranks(self.comm, local)
 
     def destroy(self):
-        for obj in (self.ksp, self._x, self._b):
-            obj.destroy()
+        for obj in (self.ksp, self._x, self._b, self._schur_is):
+            if obj is not None:
+                obj.destroy()
         self._lu.clear()
         self._loads.clear()
 

@@ -63,6 +63,9 @@ log = logging.getLogger(__name__)
 #: Default relative tolerance deciding that an indicator "vanishes" (relative to the largest
 #: indicator magnitude of the branch) or that a slope is zero.
 TIE_RTOL = 1e-10
+#: Constraints whose roots lie further apart than this (times 1 + |alpha|) are separate
+#: transitions even when their values at a transition point are within the tolerance.
+ALPHA_WINDOW = 1e-9
 #: At most this many candidate set combinations are examined at one transition point.
 MAX_CANDIDATES = 4096
 #: When SSNM cannot find the start solution, problems with at most this many contact nodes are
@@ -94,19 +97,25 @@ def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
 
 
 def sets_from_codes(codes) -> InactiveSets:
-    return InactiveSets.from_states(np.asarray(codes, dtype=int))
+    codes = np.asarray(codes)
+    return InactiveSets(codes == OPEN, (codes == OPEN) | (codes == SLIP_P), codes == SLIP_M)
+
+
+# _CONS as a table: _CONS_SIGN[state, F == 0, indicator] = sign of that constraint (0: none)
+_CONS_SIGN = np.zeros((4, 2, 3))
+for (_st, _f0), _cs in _CONS.items():
+    for _ind, _sg in _cs:
+        _CONS_SIGN[_st, int(_f0), _ind] = _sg
 
 
 def state_constraints(codes, F0) -> tuple:
-    """(flat indicator index ind*m + node, sign, node) of every constraint of the states ``codes``."""
-    m = len(codes)
-    idx, sgn, nodes = [], [], []
-    for i, c in enumerate(codes):
-        for ind, sg in _CONS[(int(c), bool(F0[i]))]:
-            idx.append(ind * m + i)
-            sgn.append(sg)
-            nodes.append(i)
-    return np.asarray(idx, dtype=np.int64), np.asarray(sgn, dtype=float), np.asarray(nodes, dtype=np.int64)
+    """(flat indicator index ind*m + node, sign, node) of every constraint of the states ``codes``
+    (node by node, each node's constraints in the order of the indicators)."""
+    codes = np.asarray(codes, dtype=np.int64)
+    m = codes.size
+    table = _CONS_SIGN[codes, np.asarray(F0, dtype=np.int64)]  # m x 3
+    nodes, ind = np.nonzero(table)
+    return ind * m + nodes, table[nodes, ind], nodes
 
 
 class _Line:
@@ -116,11 +125,13 @@ class _Line:
     the whole Y1, Y2 (with u) are formed when first needed (with the condensed backend that
     costs O(n m), so only branches the path takes pay it)."""
 
-    def __init__(self, codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full):
+    def __init__(self, codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=None):
         self.codes, self.sets = codes, sets
+        self.source = source  # backend forming u on demand (lazy branches of the path), or None
         self.lam1, self.lam2 = lam1, lam2
         self.g1, self.g2 = g1, g2
         self.c1, self.c2 = csgn * g1[cidx], csgn * g2[cidx]  # constraint values at alpha = 0 and 1
+        self.slopes = self.c2 - self.c1
         self.cidx, self.cnode = cidx, cnode
         self.gmax1 = float(np.abs(g1).max(initial=0.0))
         self.gmax2 = float(np.abs(g2).max(initial=0.0))
@@ -151,10 +162,6 @@ class _Line:
     def values(self, alpha):
         return (1.0 - alpha) * self.c1 + alpha * self.c2
 
-    @property
-    def slopes(self):
-        return self.c2 - self.c1
-
     def tol_v(self, alpha, rtol):
         return rtol * (abs(1.0 - alpha) * self.gmax1 + abs(alpha) * self.gmax2) + 1e-300
 
@@ -172,6 +179,12 @@ class _Context:
         self.f1, self.f2 = system.loads_numpy()
         self.visited: dict = {}
         self.lines: dict = {}  # canonical key -> _Line (re-used at branch points / alternatives)
+        self._W = None  # condensed backend: (w1, w2) = B K^-1 (f1, f2)
+
+    def prepare_loads(self):
+        """Condensed backend: w1, w2 = B K^-1 (f1, f2) in one two-column solve."""
+        if self._W is None and hasattr(self.solver, "load_data_many"):
+            self._W = self.solver.load_data_many([self.f1, self.f2])
 
     def _condensed_indicators(self, lam, w):
         m, rho = self.m, self.system.rho
@@ -190,7 +203,20 @@ class _Context:
         sets = sets_from_codes(codes)
         system, solver, n = self.system, self.solver, self.system.n
         cidx, csgn, cnode = state_constraints(codes, self.F0)
-        if hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
+        if hasattr(solver, "multipliers_many") and hasattr(solver, "indicators"):
+            # condensed backend: both loads with one LU and no u (formed on demand by the path)
+            if self._W is None:
+                self.prepare_loads()
+            L = solver.multipliers_many(sets, self._W, key=b"exact:" + k)
+            G = solver.indicators(L, self._W)
+            lam1, lam2, g1, g2 = L[:, 0], L[:, 1], G[:, 0], G[:, 1]
+
+            def full(lam1=lam1, lam2=lam2):
+                U = solver.displacements(np.column_stack([lam1, lam2]), [0.0, 1.0])
+                return np.concatenate([U[:, 0], lam1]), np.concatenate([U[:, 1], lam2])
+
+            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=solver)
+        elif hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
             # condensed backend: multipliers and indicators in O(m^2), u only when needed
             w1, w2 = solver.load_data(self.f1), solver.load_data(self.f2)
             lam1, lam2 = solver.multipliers(sets, w1), solver.multipliers(sets, w2)
@@ -200,7 +226,8 @@ class _Context:
                 return (np.concatenate([solver.displacement(self.f1, lam1), lam1]),
                         np.concatenate([solver.displacement(self.f2, lam2), lam2]))
 
-            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full)
+            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full,
+                       source=solver if hasattr(solver, "displacements") else None)
         else:
             Y1, Y2 = branch_endpoints(system, solver, sets)
             g1 = np.concatenate(indicators(system, Y1))
@@ -220,8 +247,8 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     vanishes before the end of the alpha range."""
     sl = ln.slopes
     tol_s = ln.tol_s(ctx.rtol)
-    dec = s * sl < -tol_s
-    if not np.any(dec):
+    dec = (s * sl < -tol_s).nonzero()[0]
+    if not dec.size:
         return None, None
     c1, c2 = ln.c1[dec], ln.c2[dec]
     roots = c1 / (c1 - c2)
@@ -232,8 +259,8 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     if s * (a_star - bound) >= 0:
         return None, None
     vals = ln.values(a_star)
-    vanish = np.flatnonzero(np.abs(vals) <= ln.tol_v(a_star, ctx.rtol))
-    first = np.flatnonzero(dec)[j]
+    vanish = (np.abs(vals) <= ln.tol_v(a_star, ctx.rtol)).nonzero()[0]
+    first = dec[j]
     if first not in vanish:
         vanish = np.union1d(vanish, [first])
     return float(a_star), vanish
@@ -254,13 +281,20 @@ def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float)
 def _valid_direction(ctx: _Context, ln: _Line, alpha: float, d: int) -> bool:
     """Is the branch ln consistent on [alpha, alpha + d*eps] for some eps > 0 (decided from values and slopes)?"""
     vals = ln.values(alpha)
-    sl = ln.slopes
-    tv, ts = ln.tol_v(alpha, ctx.rtol), ln.tol_s(ctx.rtol)
-    if np.any(vals < -tv):
+    tv = ln.tol_v(alpha, ctx.rtol)
+    if vals.min(initial=np.inf) < -tv:
         return False
-    zero = vals <= tv
-    ok = (~zero) | (d * sl > ts) | (np.abs(sl) <= ts)
-    return bool(np.all(ok))
+    zero = (vals <= tv).nonzero()[0]  # the constraints vanishing at alpha: their slopes decide
+    if not zero.size:
+        return True
+    v, dsl = vals[zero], d * ln.slopes[zero]
+    ts = ln.tol_s(ctx.rtol)
+    # A small positive value that reaches zero only beyond a tiny alpha window ahead is a
+    # separate, later transition (a near-tie on a fine mesh: the value tolerance is relative
+    # to the largest indicator), not a constraint vanishing here.
+    ahead = (v > 0.0) & (dsl < -ts) & (v > -dsl * (ALPHA_WINDOW * (1.0 + abs(alpha))))
+    ok = ahead | (dsl > ts) | (np.abs(dsl) <= ts)
+    return bool(ok.all())
 
 
 def _same_line(a: _Line, b: _Line, rtol=1e-10) -> bool:
@@ -313,32 +347,58 @@ def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tu
 
 
 # ---------------------------------------------------------------------- driver
-def _finish(path, solver, stats0, t0, status):
+def _add_branch(path, ln: _Line, s: int, **kw):
+    """Add ln to the path: lazily (multipliers, indicators; u formed on demand) with a backend
+    that forms displacements in batches, else with its end points Y1, Y2."""
+    if ln.source is not None and ln._Y is None:
+        return path.add_branch(ln.sets, s, None, None, multipliers=(ln.lam1, ln.lam2), indicators=(ln.g1, ln.g2),
+                               source=ln.source, **kw)
+    return path.add_branch(ln.sets, s, ln.Y1, ln.Y2, **kw)
+
+
+def _finish(path, solver, stats0, t0, status, before=None):
+    if path.lazy and getattr(solver, "size", 1) > 1:
+        path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
     path.status = status
+    before = before or {}  # stats of the stopped run a resumed run continues
     st = solver.stats.as_dict()
-    path.stats = {k: st[k] - stats0.get(k, 0) for k in st}
-    path.stats["wall_time"] = time.perf_counter() - t0
+    path.stats = {k: st[k] - stats0.get(k, 0) + before.get(k, 0) for k in st}
+    path.stats["wall_time"] = time.perf_counter() - t0 + before.get("wall_time", 0.0)
     log.info("exact path: %s", path)
     return path
 
 
 def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_enter, parent=None, origin=None,
-         budget=None) -> str:
-    """Follow the path from (ln, s) entered at alpha; appends to ``path``; returns the status."""
+         budget=None, resume_branch=None, n_trans0=None) -> str:
+    """Follow the path from (ln, s) entered at alpha; appends to ``path``; returns the status.
+
+    resume_branch: continue on this branch of ``path`` (sets of ln, orientation s, entered at
+    alpha, its entry point already stored and passed to the callback) instead of adding one;
+    n_trans0: the transition count the ``max_transitions`` budget counts from (default: now).
+    When the callback stops the run, ``path.resume_state`` holds what :func:`_resume` needs."""
     system, opts = ctx.system, ctx.opts
-    branch = path.add_branch(ln.sets, s, ln.Y1, ln.Y2, origin=origin, parent=parent, alpha_enter=alpha)
-    n_trans0 = len(path.transitions)
+    if resume_branch is None:
+        branch = _add_branch(path, ln, s, origin=origin, parent=parent, alpha_enter=alpha)
+    else:
+        branch = resume_branch
+    if n_trans0 is None:
+        n_trans0 = len(path.transitions)
+
+    def stopped():
+        branch.alpha_exit = alpha
+        path.resume_state = _resume_state(ctx, branch, ln, s, alpha, n_trans0)
+        return "stopped by callback"
 
     def emit(idx):
         if opts.callback is None:
             return False
         sol = Solution.from_y(system, path._ys[idx], path._alphas[idx], sets=ln.sets)
-        return bool(opts.callback(PathPoint(idx, path._alphas[idx], branch.index, sol)))
+        return bool(opts.callback(PathPoint(idx, path._alphas[idx], branch.index, sol, path)))
 
-    idx = path.add_point(branch, alpha, y_enter)
-    if emit(idx):
-        branch.alpha_exit = alpha
-        return "stopped by callback"
+    if resume_branch is None:
+        idx = path.add_point(branch, alpha, y_enter)
+        if emit(idx):
+            return stopped()
     while True:
         key = (ctx.key(ln.codes), s)
         seen = ctx.visited.setdefault(key, [])
@@ -353,11 +413,11 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
         if a_star is None:
             a_end = ctx.hi if s > 0 else ctx.lo
             branch.alpha_exit = a_end
-            idx = path.add_point(branch, a_end, ln.y(a_end))
+            idx = path.add_point(branch, a_end)
             emit(idx)
             return "completed"
         branch.alpha_exit = a_star
-        path.add_point(branch, a_star, ln.y(a_star))
+        path.add_point(branch, a_star)
         limit = opts.max_transitions if budget is None else budget
         if len(path.transitions) - n_trans0 >= limit:
             path.events.append(PathEvent("max_transitions", a_star, f"transition cap {limit} reached",
@@ -401,16 +461,64 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
         path.transitions.append(tr)
         log.info("alpha=%.12g %s transition: %s", a_star, kind, changes)
         parent_idx, ln, s, alpha = branch.index, nxt, d, a_star
-        branch = path.add_branch(ln.sets, s, ln.Y1, ln.Y2, origin=tr.index, parent=parent_idx, alpha_enter=alpha)
-        idx = path.add_point(branch, alpha, ln.y(alpha))
+        branch = _add_branch(path, ln, s, origin=tr.index, parent=parent_idx, alpha_enter=alpha)
+        idx = path.add_point(branch, alpha)
         if emit(idx):
-            branch.alpha_exit = alpha
-            return "stopped by callback"
+            return stopped()
 
 
 def _jsonable(info):
     return {"nodes": list(map(int, info["nodes"])), "candidates": int(info["candidates"]),
             "admissible": {str(k): v for k, v in info["admissible"].items()}}
+
+
+# ---------------------------------------------------------------------- resume
+def _resume_state(ctx: _Context, branch, ln: _Line, s: int, alpha: float, n_trans0: int) -> dict:
+    """What a stopped run needs to continue (JSON): the branch being followed (its index, canonical
+    state codes, orientation, entry alpha -- its entry point is stored in the path), the transition
+    count the max_transitions budget counts from, and the cycle detector.  Nothing else is pending:
+    the alternatives of branch points are events of the path (follow_alternative)."""
+    return {"branch": int(branch.index), "codes": [int(c) for c in ln.codes], "states": ln.sets.states(),
+            "orientation": int(s), "alpha": float(alpha), "transitions0": int(n_trans0),
+            "visited": [[k.hex(), int(sg), [float(a) for a in al]] for (k, sg), al in ctx.visited.items()]}
+
+
+def _resume(system, alpha_start, alpha_end, options, solver, resume) -> SolutionPath:
+    """Continue an exact run stopped by its callback (see :func:`trace_exact`)."""
+    t0 = time.perf_counter()
+    usage = "resume must be a dict {'path': SolutionPath, 'state': path.resume_state}"
+    try:
+        path, state = resume["path"], resume["state"]
+    except (TypeError, KeyError):
+        raise InputError(usage) from None
+    if not isinstance(path, SolutionPath) or not isinstance(state, dict):
+        raise InputError(usage)
+    if path.method != "exact" or not path.branches or not path._alphas:
+        raise InputError(f"cannot resume from {path!r}: not a started exact path")
+    if (path.n, path.m) != (system.n, system.m):
+        raise InputError(f"cannot resume: the path has n={path.n}, m={path.m}, the system n={system.n}, m={system.m}")
+    if (path.alpha_start, path.alpha_end) != (float(alpha_start), float(alpha_end)):
+        raise InputError(f"cannot resume: the path runs from {path.alpha_start} to {path.alpha_end}, "
+                         f"not from {alpha_start} to {alpha_end}")
+    try:
+        branch = path.branches[int(state["branch"])]
+        codes = np.asarray(state["codes"], dtype=np.int8)
+        s, alpha, n_trans0 = int(state["orientation"]), float(state["alpha"]), int(state["transitions0"])
+        visited = {(bytes.fromhex(k), int(sg)): [float(a) for a in al] for k, sg, al in state["visited"]}
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
+    if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
+            or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
+        raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
+    ctx, opts = _prepare(system, alpha_start, alpha_end, options, solver, path.options.get("tie_rtol", TIE_RTOL))
+    ctx.visited = visited
+    stats0 = ctx.solver.stats.as_dict()
+    before = {k: v for k, v in path.stats.items() if isinstance(v, (int, float))}
+    ln = ctx.line(codes)
+    path.status, path.resume_state = "running", None
+    branch.alpha_exit = float("nan")
+    status = _run(ctx, path, ln, s, alpha, None, resume_branch=branch, n_trans0=n_trans0)
+    return _finish(path, ctx.solver, stats0, t0, status, before)
 
 
 def _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol):
@@ -425,12 +533,15 @@ def _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol):
     opts.validate()
     lo, hi = _alpha_range(opts, alpha_start, alpha_end)
     solver = solver or get_solver(system)
-    return _Context(system, solver, opts, lo, hi, float(tie_rtol)), opts
+    ctx = _Context(system, solver, opts, lo, hi, float(tie_rtol))
+    ctx.prepare_loads()
+    return ctx, opts
 
 
 def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, y0=None,
                 options: Optional[PathOptions] = None, solver=None, tie_rtol: float = TIE_RTOL,
-                start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None) -> SolutionPath:
+                start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
+                resume=None) -> SolutionPath:
     """Exact piecewise-affine continuation of the solution path from alpha_start towards alpha_end.
 
     Parameters
@@ -444,12 +555,21 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         value counts as zero at a transition point (ties) or a slope as zero
     start_sets, orientation : start on the branch of these sets (y = DirNeu(start_sets, f(alpha_start)),
         which must be consistent there) with this orientation (default: towards alpha_end)
+    resume : continue a run stopped by its callback instead of starting anew: a dict
+        ``{"path": SolutionPath, "state": path.resume_state}`` (the stopped run's path, possibly
+        saved and loaded, and the state it left in ``path.resume_state``: the branch being
+        followed -- sets, orientation, entry alpha -- the transition budget's start and the
+        cycle detector).  The branch is rebuilt from its sets, new points are appended to that
+        path, and the result equals an uninterrupted run.  The path's ``tie_rtol`` is used;
+        y0, start_sets and orientation are ignored.
 
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
     (bracket (alpha, alpha)) and every change (``Transition.changes``).  Status "completed"
     (alpha range left), "stuck" (dead end / too degenerate, see events), "cycling",
     "max_transitions" or "stopped by callback".
     """
+    if resume is not None:
+        return _resume(system, alpha_start, alpha_end, options, solver, resume)
     t0 = time.perf_counter()
     ctx, opts = _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol)
     solver = ctx.solver
@@ -464,7 +584,7 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
             raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
         codes = canonical_codes(start_sets, system.friction)
         ln = ctx.line(codes)
-        y = ln.y(alpha)
+        y = None  # the branch's point at alpha (formed lazily with the condensed backend)
         if np.any(ln.values(alpha) < -ln.tol_v(alpha, 1e-8)):
             raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha_start}: "
                              f"DirNeu(start_sets, f(alpha_start)) is not a solution")
@@ -486,7 +606,7 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
                 f"first of {len(sols)} solutions found by enumeration (follow the others with start_sets=...)",
                 None, {"solutions": [{"sets": x.sets.to_dict(), "states": x.states()} for x in sols]}))
         ln = ctx.line(canonical_codes(start.sets, system.friction))
-        y = ln.y(alpha)
+        y = None  # the branch's point at alpha (formed lazily with the condensed backend)
     status = _run(ctx, path, ln, s, alpha, y)
     return _finish(path, solver, stats0, t0, status)
 
@@ -528,7 +648,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
                     changes=changes)
     path.transitions.append(tr)
     first = len(path.branches)
-    status = _run(ctx, path, ln, d, a, ln.y(a), parent=from_b.index, origin=tr.index)
+    status = _run(ctx, path, ln, d, a, None, parent=from_b.index, origin=tr.index)
+    if path.lazy and getattr(ctx.solver, "size", 1) > 1:
+        path.form()  # collective (see _finish)
     st = ctx.solver.stats.as_dict()
     result = {"status": status, "branches": list(range(first, len(path.branches))),
               "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}

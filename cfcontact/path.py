@@ -12,6 +12,14 @@ Both return a :class:`SolutionPath`.  Along a branch y(alpha) = (1 - alpha) Y1 +
 with Y1 = DirNeu(Z, f1), Y2 = DirNeu(Z, f2) exactly, so every branch stores (Y1, Y2) and
 :meth:`SolutionPath.solutions_at` evaluates branches exactly (no interpolation between
 stored points), also after :meth:`SolutionPath.load`.
+
+Lazy branches: with the condensed backend (:class:`cfcontact.condensed.CondensedSolver`) a
+branch is determined by its multipliers, lam(alpha) = (1 - alpha) lam1 + alpha lam2, and the
+exact method stores only (lam1, lam2), the indicator values at alpha = 0 and 1 and the backend.
+The displacements u = K^-1 (f - B^T lam) of such branches (and of their stored points) are
+formed when first needed (``ys``, ``points``, ``branch_y``, ``solutions_at``, ``save``), for
+many branches at once in one multi-right-hand-side solve.  ``multiplicity``,
+``max_multiplicity`` and the multiplier components of ``component`` need no u at all.
 """
 
 from __future__ import annotations
@@ -98,7 +106,7 @@ class PathPoint:
     alpha: float
     branch: int
     solution: Solution
-    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path (seed)
+    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path
 
 
 @dataclass
@@ -179,6 +187,39 @@ class PathEvent:
         return asdict(self)
 
 
+#: Lazy branches are formed together (one batch) when their displacements take at most this
+#: many doubles; beyond it only the branches asked for are formed.
+BATCH_LIMIT = 200_000_000
+
+
+class _Points(list):
+    """y of every stored point.  An entry None lies on a lazy branch (multipliers only) and is
+    formed on first access (indexing, iteration); the list then holds the array."""
+
+    __slots__ = ("_path",)
+
+    def __init__(self, path, items=()):
+        super().__init__(items)
+        self._path = path
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        v = list.__getitem__(self, i)
+        if v is None:
+            j = i + len(self) if i < 0 else i
+            self._path._form_points([j])
+            v = list.__getitem__(self, j)
+        return v
+
+    def __iter__(self):
+        self._path._form_points(range(len(self)))
+        return list.__iter__(self)
+
+    def __reduce__(self):
+        return (list, (list(self),))
+
+
 class SolutionPath:
     """The traced solution path: points, branches, transitions, and exact branch evaluation."""
 
@@ -193,15 +234,19 @@ class SolutionPath:
         self.options = options or {}
         self.geometry = geometry
         self._alphas: list = []
-        self._ys: list = []
+        self._ys: list = _Points(self)
         self._point_branch: list = []
         self.branches: list = []
         self.transitions: list = []
         self.events: list = []
         self.status = "running"
         self.stats: dict = {}
-        self.resume_state: Optional[dict] = None  # seed loop state at the end (trace_path(resume=...))
+        self.resume_state: Optional[dict] = None  # state to continue a stopped run (trace_path(resume=...))
         self._Y: dict = {}  # branch index -> (Y1, Y2)
+        # lazy branches: index -> (lam1, lam2); indicators (3m at alpha = 0 and 1); unformed -> backend
+        self._lam: dict = {}
+        self._ind: dict = {}
+        self._pending: dict = {}
 
     # ------------------------------------------------------------- building
     @classmethod
@@ -210,15 +255,36 @@ class SolutionPath:
         return cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
                    options, system.geometry)
 
-    def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan")):
+    def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan"),
+                   multipliers=None, indicators=None, source=None):
+        """Append a branch with y(alpha) = (1 - alpha) Y1 + alpha Y2.
+
+        Lazy form: Y1 = Y2 = None, ``multipliers`` = (lam1, lam2) (2m each), ``source`` = a
+        backend with ``displacements(lams, alphas)`` (:class:`~cfcontact.condensed.CondensedSolver`)
+        that forms u when needed, optionally ``indicators`` = (g1, g2), the three indicator
+        vectors of (17) stacked (3m) at alpha = 0 and 1."""
         b = Branch(len(self.branches), sets, int(orientation), origin=origin, parent=parent, alpha_enter=alpha_enter)
         self.branches.append(b)
-        self._Y[b.index] = (np.asarray(Y1, dtype=float), np.asarray(Y2, dtype=float))
+        if Y1 is None:
+            if multipliers is None or source is None:
+                raise InputError("a lazy branch needs multipliers=(lam1, lam2) and a source backend")
+            self._lam[b.index] = (np.asarray(multipliers[0], dtype=float), np.asarray(multipliers[1], dtype=float))
+            if indicators is not None:
+                self._ind[b.index] = (np.asarray(indicators[0], dtype=float), np.asarray(indicators[1], dtype=float))
+            self._pending[b.index] = source
+        else:
+            self._Y[b.index] = (np.asarray(Y1, dtype=float), np.asarray(Y2, dtype=float))
         return b
 
-    def add_point(self, branch: Branch, alpha, y) -> int:
+    def add_point(self, branch: Branch, alpha, y=None) -> int:
+        """Append a point; y=None: the point of ``branch`` at alpha (formed lazily on a lazy branch)."""
+        if y is None and branch.index not in self._Y:
+            if branch.index not in self._pending:
+                raise InputError(f"add_point without y needs a lazy branch (branch {branch.index} is not)")
+        elif y is None:
+            y = self.branch_y(branch, alpha)
         self._alphas.append(float(alpha))
-        self._ys.append(np.asarray(y, dtype=float))
+        self._ys.append(None if y is None else np.asarray(y, dtype=float))
         self._point_branch.append(branch.index)
         idx = len(self._alphas) - 1
         branch.points.append(idx)
@@ -233,7 +299,8 @@ class SolutionPath:
     @property
     def ys(self) -> np.ndarray:
         """y = (u, lam_n, lam_t) of every stored point, (P, n + 2m)."""
-        return np.asarray(self._ys, dtype=float).reshape(len(self._ys), self.n + 2 * self.m)
+        self._form_points(range(len(self._ys)))
+        return np.asarray(list(self._ys), dtype=float).reshape(len(self._ys), self.n + 2 * self.m)
 
     @property
     def point_branch(self) -> np.ndarray:
@@ -251,8 +318,94 @@ class SolutionPath:
     def branch_y(self, branch, alpha) -> np.ndarray:
         """y on a branch at alpha, exactly: (1 - alpha) Y1 + alpha Y2."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
+        if b not in self._Y:
+            self.form([b])
         Y1, Y2 = self._Y[b]
         return (1.0 - alpha) * Y1 + alpha * Y2
+
+    # ------------------------------------------------------- lazy branches
+    @property
+    def lazy(self) -> bool:
+        """Does the path have branches whose displacements are not formed yet?"""
+        return bool(self._pending)
+
+    def form(self, branches=None):
+        """Form (Y1, Y2) of lazy branches (default: all), in one multi-RHS solve per backend.
+
+        Collective under MPI (every rank must call it for the same branches).  When the
+        requested branches are few, every pending branch is formed along with them as long as
+        that batch stays within BATCH_LIMIT doubles."""
+        want = sorted(self._pending) if branches is None else sorted({int(b) for b in branches} & set(self._pending))
+        if not want:
+            return
+        if branches is not None and len(self._pending) * 2 * (self.n + 2 * self.m) <= BATCH_LIMIT:
+            want = sorted(self._pending)
+        by_source: dict = {}
+        for b in want:
+            by_source.setdefault(id(self._pending[b]), (self._pending[b], []))[1].append(b)
+        for source, bs in by_source.values():
+            lams = np.empty((2 * self.m, 2 * len(bs)))
+            for k, b in enumerate(bs):
+                lams[:, 2 * k], lams[:, 2 * k + 1] = self._lam[b]
+            U = source.displacements(lams, np.tile([0.0, 1.0], len(bs)))
+            for k, b in enumerate(bs):
+                lam1, lam2 = self._lam[b]
+                self._Y[b] = (np.concatenate([U[:, 2 * k], lam1]), np.concatenate([U[:, 2 * k + 1], lam2]))
+                del self._pending[b]
+
+    def _form_points(self, indices):
+        """Replace the lazy entries (None) among the points ``indices`` by their y."""
+        ys = self._ys
+        idx = [i for i in indices if list.__getitem__(ys, i) is None]
+        if not idx:
+            return
+        self.form({self._point_branch[i] for i in idx})
+        for i in idx:
+            list.__setitem__(ys, i, self.branch_y(self._point_branch[i], self._alphas[i]))
+
+    def iter_points(self, batch: int = 256, indices=None):
+        """(alpha, y) of every stored point (or of the points ``indices``) in path order, without
+        keeping the displacements of lazy points: they are formed ``batch`` at a time (one
+        multi-RHS solve) and dropped.  Collective under MPI.  For verifying large paths."""
+        order = list(range(len(self._alphas))) if indices is None else [int(i) for i in indices]
+        P, batch = len(order), max(1, int(batch))
+        for c0 in range(0, P, batch):
+            idx = order[c0:c0 + batch]
+            lazy = [i for i in idx if list.__getitem__(self._ys, i) is None
+                    and self._point_branch[i] in self._pending]
+            formed = {}
+            by_source: dict = {}
+            for i in lazy:
+                src = self._pending[self._point_branch[i]]
+                by_source.setdefault(id(src), (src, []))[1].append(i)
+            for src, ii in by_source.values():
+                lams = np.stack([self._point_lam(i) for i in ii], axis=1)
+                U = src.displacements(lams, [self._alphas[i] for i in ii])
+                for k, i in enumerate(ii):
+                    formed[i] = np.concatenate([U[:, k], lams[:, k]])
+            for i in idx:
+                yield self._alphas[i], formed[i] if i in formed else self._ys[i]
+
+    def _branch_lam(self, b, alpha):
+        if b in self._lam:
+            lam1, lam2 = self._lam[b]
+            return (1.0 - alpha) * lam1 + alpha * lam2
+        return self.branch_y(b, alpha)[self.n:]
+
+    def _point_lam(self, i):
+        y = list.__getitem__(self._ys, i)
+        if y is not None:
+            return y[self.n:]
+        return self._branch_lam(self._point_branch[i], self._alphas[i])
+
+    def _branch_indicators(self, b, alpha):
+        """(a, bp, bm) of (17) on branch b at alpha (from the stored indicators of a lazy branch)."""
+        if b in self._ind:
+            g1, g2 = self._ind[b]
+            g = (1.0 - alpha) * g1 + alpha * g2
+            m = self.m
+            return g[:m], g[m:2 * m], g[2 * m:]
+        return self._indicators(self.branch_y(b, alpha))
 
     def _indicators(self, y):
         n, m = self.n, self.m
@@ -262,9 +415,9 @@ class SolutionPath:
         b = lt + self.rho * (self.T @ u)
         return a, b - F * ln, b + F * ln
 
-    def _consistent(self, y, sets, slack=1e-9):
-        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative)."""
-        a, bp, bm = self._indicators(y)
+    def _consistent(self, y, sets, slack=1e-9, ind=None):
+        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative); ``ind`` = (a, bp, bm) of y if known."""
+        a, bp, bm = self._indicators(y) if ind is None else ind
         scale = max(np.abs(a).max(initial=0), np.abs(bp).max(initial=0), np.abs(bm).max(initial=0), 1e-300)
         tol = slack * scale
         F = np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,))
@@ -293,42 +446,63 @@ class SolutionPath:
         Returns a list of :class:`Solution` sorted by branch order.
         """
         alpha = float(alpha)
-        out, ys = [], []
-        for b in self.branches:
-            lo, hi = self.branch_extent(b)
-            if not (lo <= alpha <= hi):
-                continue
+        picked = self._solution_branches(alpha, rtol)
+        self.form([b.index for b in picked])
+        out = []
+        n, m = self.n, self.m
+        for b in picked:
             y = self.branch_y(b, alpha)
-            if not self._consistent(y, b.sets):
-                continue
-            scale = max(np.abs(y).max(), 1e-300)
-            if any(np.abs(y - z).max() <= rtol * max(scale, np.abs(z).max()) for z in ys):
-                continue
-            ys.append(y)
-            n, m = self.n, self.m
             out.append(Solution(y[:n].copy(), y[n:n + m].copy(), y[n + m:].copy(), alpha, b.sets, 0))
+        return out
+
+    def _solution_branches(self, alpha, rtol=1e-9, extents=None) -> list:
+        """The branches giving the distinct solutions at alpha (lazy branches are decided from
+        their multipliers and indicators, without forming u; the multipliers determine u).
+        ``extents``: the (B, 2) array of every branch's extent, if already at hand."""
+        out, keys = [], []
+        if extents is None:
+            extents = np.array([self.branch_extent(b) for b in self.branches], dtype=float).reshape(-1, 2)
+        for j in np.flatnonzero((extents[:, 0] <= alpha) & (alpha <= extents[:, 1])):
+            b = self.branches[j]
+            if b.index in self._Y:
+                y = self.branch_y(b, alpha)
+                if not self._consistent(y, b.sets):
+                    continue
+                key = (y, False)
+            else:
+                if not self._consistent(None, b.sets, ind=self._branch_indicators(b.index, alpha)):
+                    continue
+                key = (self._branch_lam(b.index, alpha), True)
+            if any(_same_point(key, z, self.n, rtol) for z in keys):
+                continue
+            keys.append(key)
+            out.append(b)
         return out
 
     def multiplicity(self, alpha: float) -> int:
         """Number of distinct solutions of the path at alpha."""
-        return len(self.solutions_at(alpha))
+        return len(self._solution_branches(float(alpha)))
 
     def max_multiplicity(self, samples: int = 0):
         """(max multiplicity, an alpha where it occurs), checked at the midpoints between all branch ends."""
-        ends = sorted({e for b in self.branches for e in self.branch_extent(b) if np.isfinite(e)})
+        extents = np.array([self.branch_extent(b) for b in self.branches], dtype=float).reshape(-1, 2)
+        ends = sorted({float(e) for e in extents.ravel() if np.isfinite(e)})
         cands = [0.5 * (a + b) for a, b in zip(ends[:-1], ends[1:]) if b > a]
         if samples:
             cands += list(np.linspace(min(ends), max(ends), samples))
         best = (0, float("nan"))
         for a in cands:
-            k = self.multiplicity(a)
+            k = len(self._solution_branches(float(a), extents=extents))
             if k > best[0]:
                 best = (k, a)
         return best
 
     def component(self, spec) -> np.ndarray:
         """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y."""
-        return self.ys[:, self.component_index(spec)]
+        idx = self.component_index(spec)
+        if idx >= self.n and self._pending:  # a multiplier: no displacement needed
+            return np.array([self._point_lam(i)[idx - self.n] for i in range(len(self._alphas))], dtype=float)
+        return self.ys[:, idx]
 
     def component_index(self, spec) -> int:
         n, m = self.n, self.m
@@ -367,7 +541,8 @@ class SolutionPath:
         Format (version 1): ``path.json`` holds the structure (method, options, status, stats,
         branches with sets and orientation, transitions, events); ``fields.npz`` holds the
         arrays (alphas, ys, point_branch, per-branch Y1/Y2, N and T in CSR form, friction,
-        geometry of a FEM model).
+        geometry of a FEM model).  Lazy branches are formed first (one batched solve), so
+        the saved file is the same as for an eagerly formed path.
         """
         path = os.fspath(path)
         parent = os.path.dirname(os.path.abspath(path))
@@ -382,6 +557,7 @@ class SolutionPath:
                     "events": [e.to_dict() for e in self.events], "has_geometry": self.geometry is not None}
             with open(os.path.join(tmp, "path.json"), "w") as fh:
                 json.dump(meta, fh, indent=1, default=_json_default)
+            self.form()
             arrays = {"alphas": self.alphas, "ys": self.ys, "point_branch": self.point_branch,
                       "friction": np.asarray(self.friction, dtype=float),
                       "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
@@ -430,7 +606,7 @@ class SolutionPath:
                 meta["options"], geometry)
         p._alphas = [float(a) for a in arrays["alphas"]]
         ys = arrays["ys"]
-        p._ys = [ys[i] for i in range(ys.shape[0])]
+        p._ys = _Points(p, [ys[i] for i in range(ys.shape[0])])
         p._point_branch = [int(b) for b in arrays["point_branch"]]
         p.branches = [Branch.from_dict(d) for d in meta["branches"]]
         for b in p.branches:
@@ -440,6 +616,16 @@ class SolutionPath:
         p.status = meta["status"]
         p.stats = meta["stats"]
         return p
+
+
+def _same_point(a, b, n, rtol) -> bool:
+    """Same solution?  a, b = (vector, is_multipliers_only); a full y against multipliers compares
+    the multiplier parts (the multipliers determine u for a given load)."""
+    (x, xl), (z, zl) = a, b
+    if xl != zl:
+        x, z = (x if xl else x[n:]), (z if zl else z[n:])
+    return bool(np.abs(x - z).max(initial=0.0) <= rtol * max(np.abs(x).max(initial=0.0),
+                                                             np.abs(z).max(initial=0.0), 1e-300))
 
 
 def _json_default(o):
@@ -462,10 +648,12 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     method : "seed" (the seed's Section 4) or "exact" (exact piecewise-affine continuation)
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``)
-    resume : continue a seed run stopped by its callback instead of starting anew: a dict
+    resume : continue a run stopped by its callback instead of starting anew: a dict
         ``{"path": SolutionPath, "state": path.resume_state}`` (the stopped run's path, possibly
-        saved and loaded, and the loop state it left in ``path.resume_state``).  New points are
-        appended to that path; the result equals an uninterrupted run.
+        saved and loaded, and the state it left in ``path.resume_state``: for "seed" the loop
+        state -- step h, step count, cycle detector --, for "exact" the branch being followed --
+        sets, orientation, entry alpha -- and the cycle detector).  The method must be the
+        path's.  New points are appended to that path; the result equals an uninterrupted run.
     """
     if method not in ("seed", "exact"):
         raise InputError(f"unknown method {method!r}; valid: 'seed', 'exact'")
@@ -480,12 +668,13 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
             raise InputError(f"unknown path option(s) {unknown}; valid: {sorted(valid)}")
         opts = replace(opts, **kwargs)
     opts.validate()
+    if resume is not None and isinstance(resume, dict) and isinstance(resume.get("path"), SolutionPath) \
+            and resume["path"].method != method:
+        raise InputError(f"cannot resume a {resume['path'].method!r} path with method {method!r}")
     if method == "exact":
-        if resume is not None:
-            raise InputError("resume is supported for method 'seed' only")
         from cfcontact.exact import trace_exact
 
-        return trace_exact(system, alpha_start, alpha_end, y0=y0, options=opts, solver=solver)
+        return trace_exact(system, alpha_start, alpha_end, y0=y0, options=opts, solver=solver, resume=resume)
     return _trace_seed(system, alpha_start, alpha_end, y0, opts, solver, resume)
 
 

@@ -110,7 +110,10 @@ class InactiveSets:
         """Sets from per-node states ('open', 'stick', 'slip+', 'slip-' or codes 0-3).
 
         An open node is put in I_t^+ (tangentially free: lam_t = F lam_n = 0)."""
-        codes = np.array([STATE_NAMES.index(s) if isinstance(s, str) else int(s) for s in states], dtype=int)
+        if isinstance(states, np.ndarray) and states.dtype.kind in "iu":
+            codes = states.astype(int)
+        else:
+            codes = np.array([STATE_NAMES.index(s) if isinstance(s, str) else int(s) for s in states], dtype=int)
         if np.any((codes < 0) | (codes > 3)):
             raise InputError(f"node states must be in {STATE_NAMES} or 0..3, got {list(states)}")
         return cls(nu=codes == 0, tp=(codes == 0) | (codes == 2), tm=codes == 3)
@@ -405,6 +408,8 @@ def ssnm(system: ContactSystem, alpha: float = 0.0, y0=None, tol: float = 1e-9, 
     solver = solver or get_solver(system)
     fvec = _load_vector(system, alpha, f)
     y_prev = np.zeros(system.n + 2 * system.m) if y0 is None else _as_y(system, y0)
+    if hasattr(solver, "ssnm"):  # the condensed backend iterates in the multipliers alone
+        return solver.ssnm(fvec, y_prev, tol, max_iter, alpha)
     for k in range(1, int(max_iter) + 1):
         Z = inactive_sets(system, y_prev)
         y = solver.solve(Z, fvec)

@@ -346,3 +346,119 @@ def test_exact_path_save_load_round_trip(tmp_path):
         assert len(s1) == len(s2)
         for x, y in zip(s1, s2):
             assert np.array_equal(x.y, y.y)
+
+
+# ------------------------------------------------------- callback, stop and resume
+def _stop_after(k):
+    """A callback that stops once the live path has k transitions (PathPoint.path)."""
+    return lambda p: len(p.path.transitions) >= k
+
+
+def _saved(path, tmp_path, name):
+    """The path and its resume state as a checkpoint would give them back (save/load, JSON)."""
+    back = cfcontact.SolutionPath.load(path.save(tmp_path / name))
+    return {"path": back, "state": json.loads(json.dumps(path.resume_state))}
+
+
+def assert_same_exact_path(a, b):
+    """Same transitions (alpha to 1e-12, kind, changes), branches, points, events and multiplicity
+    (to the last bits only: a solver's cache may hold the factorization of an equivalent J(Z))."""
+    assert a.status == b.status
+    strip = lambda d: {k: v for k, v in d.items() if k not in ("alpha", "bracket", "alpha_enter", "alpha_exit")}  # noqa: E731
+    assert [strip(t.to_dict()) for t in a.transitions] == [strip(t.to_dict()) for t in b.transitions]
+    assert [strip(br.to_dict()) for br in a.branches] == [strip(br.to_dict()) for br in b.branches]
+    for x, y in ((a.alphas, b.alphas), ([t.alpha for t in a.transitions], [t.alpha for t in b.transitions]),
+                 ([t.alpha for t in a.folds], [t.alpha for t in b.folds]),
+                 ([(br.alpha_enter, br.alpha_exit) for br in a.branches],
+                  [(br.alpha_enter, br.alpha_exit) for br in b.branches])):
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
+    assert np.array_equal(a.point_branch, b.point_branch)
+    np.testing.assert_allclose(a.ys, b.ys, rtol=0, atol=1e-12 * np.abs(b.ys).max())
+    assert [(e.kind, e.branch) for e in a.events] == [(e.kind, e.branch) for e in b.events]
+    assert a.max_multiplicity()[0] == b.max_multiplicity()[0]
+
+
+def test_exact_callback_sees_the_live_path():
+    system = random_system(4, 1, friction=30.0, extra_dofs=3)
+    seen = []
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact",
+                                callback=lambda p: seen.append((p.path, len(p.path.transitions), len(p.path.folds))))
+    assert path.folds and all(p is path for p, _, _ in seen)
+    assert [n for _, n, _ in seen] == list(range(len(path.transitions) + 1)) + [len(path.transitions)]
+    assert seen[-1][2] == len(path.folds)
+    # stop after the first fold: exactly one fold, stopped at the entry of the branch after it
+    stop = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=lambda p: len(p.path.folds) >= 1)
+    assert stop.status == "stopped by callback" and len(stop.folds) == 1
+    assert stop.transitions[-1].kind == "fold" and stop.resume_state["branch"] == len(stop.branches) - 1
+
+
+@pytest.mark.parametrize("system_name,alpha_start,alpha_end", [
+    ("folds", 0.0, 1.0), ("folds", 1.0, 0.0), ("branch_points", 0.0, 1.0)])
+def test_exact_resume_equals_uninterrupted(tmp_path, system_name, alpha_start, alpha_end):
+    system = random_system(4, 1, friction=30.0, extra_dofs=3) if system_name == "folds" else two_identical_nodes()
+    ref = cfcontact.trace_path(system, alpha_start, alpha_end, method="exact")
+    assert ref.status == "completed" and len(ref.folds) >= 2
+    for k in range(len(ref.transitions) + 1):
+        part = cfcontact.trace_path(system, alpha_start, alpha_end, method="exact", callback=_stop_after(k))
+        assert part.status == "stopped by callback" and len(part.transitions) == k
+        st = part.resume_state
+        b = part.branches[st["branch"]]
+        assert st["orientation"] == b.orientation and st["alpha"] == b.alpha_enter == part.alphas[-1]
+        assert InactiveSets.from_states(st["states"]).equivalent(b.sets, system.friction)
+        resumed = cfcontact.trace_path(system, alpha_start, alpha_end, method="exact",
+                                       resume=_saved(part, tmp_path, f"p{k}"))
+        assert_same_exact_path(resumed, ref)
+        assert resumed.resume_state is None
+        assert resumed.stats["linear_solves"] >= ref.stats["linear_solves"]
+
+
+def test_exact_resume_twice_and_budget(tmp_path):
+    """Stop, resume, stop again: the state equals that of one run stopped there (the cycle detector
+    and the max_transitions budget carry over); the transition cap counts along the whole path."""
+    system = random_system(4, 1, friction=30.0, extra_dofs=3)
+    direct = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=_stop_after(6))
+    first = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=_stop_after(2))
+    second = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=_stop_after(6),
+                                  resume=_saved(first, tmp_path, "first"))
+    s2, sd = second.resume_state, direct.resume_state
+    assert {k: v for k, v in s2.items() if k not in ("alpha", "visited")} == \
+        {k: v for k, v in sd.items() if k not in ("alpha", "visited")}
+    assert abs(s2["alpha"] - sd["alpha"]) <= 1e-12 and len(s2["visited"]) == len(sd["visited"]) == 6
+    for (k2, o2, a2), (kd, od, ad) in zip(s2["visited"], sd["visited"]):
+        assert (k2, o2) == (kd, od) and np.allclose(a2, ad, rtol=0, atol=1e-12)
+    assert_same_exact_path(second, direct)
+    capped = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=5)
+    assert capped.status == "max_transitions"
+    part = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=5, callback=_stop_after(3))
+    resumed = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=5,
+                                   resume=_saved(part, tmp_path, "capped"))
+    assert_same_exact_path(resumed, capped)
+
+
+def test_exact_resume_with_condensed_backend(tmp_path):
+    system = random_system(4, 1, friction=30.0, extra_dofs=3)
+    ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system))
+    part = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system),
+                                callback=_stop_after(4))
+    resumed = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system),
+                                   resume=_saved(part, tmp_path, "c"))
+    assert_same_exact_path(resumed, ref)
+
+
+def test_exact_resume_bad_input(tmp_path):
+    system = random_system(4, 1, friction=30.0, extra_dofs=3)
+    part = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=_stop_after(2))
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed", callback=lambda p: p.index == 3)
+    with pytest.raises(cfcontact.InputError, match="'seed' path with method 'exact'"):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", resume={"path": seed, "state": seed.resume_state})
+    with pytest.raises(cfcontact.InputError, match="resume must be a dict"):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", resume={"path": part})
+    with pytest.raises(cfcontact.InputError, match="not from 0.0 to 0.5"):
+        cfcontact.trace_path(system, 0.0, 0.5, method="exact", resume=_saved(part, tmp_path, "a"))
+    bad = _saved(part, tmp_path, "b")
+    bad["state"]["orientation"] = -bad["state"]["orientation"]
+    with pytest.raises(cfcontact.InputError, match="does not match branch 2"):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", resume=bad)
+    del bad["state"]["visited"]
+    with pytest.raises(cfcontact.InputError, match="invalid resume state"):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", resume=bad)

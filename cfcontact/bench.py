@@ -1,0 +1,398 @@
+"""Benchmarks of cfcontact's path following (see docs/bench.md for measured numbers).
+
+Part A -- seed vs exact on the main demo (``demos/main.py``: ``build(F)`` for every F in
+``DEMO_FRICTIONS``).  The seed method runs with the default PETSc backend
+(:class:`cfcontact.DirNeuSolver`: one factorization of J(Z) per branch), the exact method with
+:class:`cfcontact.condensed.CondensedSolver` (K factored once, a dense system of size <= 2m per branch).
+Reported per method: linear solves, factorizations (for the condensed backend: factorizations
+of K and dense factorizations separately), wall time, transitions, folds, largest number of
+solutions at one alpha, worst residual of (1)-(3) over the stored points; the speed-up
+seed / exact and whether both give the same sequence of set changes (node, set, kind) with
+transition alphas agreeing within the seed's h_min.  Each method runs ``--repeat`` times
+(default 3, ``--quick``: 1) and the fastest run is reported for both.
+
+Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
+nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes), with the demo's loads and
+its largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
+``ru_maxrss`` of that process) and reports the time split
+
+    assembly (two_blocks) | factorization of K (PETSc log: MatLUFactorSym + MatLUFactorNum) |
+    condensation (S = B K^-1 B^T) | path (trace_path, the rest)
+
+and the ratio total / (assembly + factorization of K), total = the sum of the four.
+
+The exact method stores only the multipliers of each branch (the condensed backend determines
+u from them) and forms the displacements when they are needed.  The worst residual of
+(1)-(3) over the stored points is computed after the run with
+:meth:`cfcontact.SolutionPath.iter_points` (u formed in batches by multi-right-hand-side
+solves and dropped), and its time is reported separately (not in the path time).
+
+Run:  cfcontact bench [--quick] [--sizes 1e4,1.2e5,1e6] [--skip-large] [--output DIR]
+      [--part A|B|AB] [--repeat N] [--timeout S]      (or .venv/bin/python demos/bench.py ...)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from cfcontact.errors import InputError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DEMOS = os.path.join(ROOT, "demos")
+
+SIZES = (1e4, 1.2e5, 1e6)
+QUICK_SIZES = (2e3, 1e4)
+LARGE = 5e5  # --skip-large drops sizes above this
+
+
+def demo():
+    """The main demo's module ``demos/main.py`` (its constants are imported, never copied)."""
+    if not os.path.isfile(os.path.join(DEMOS, "main.py")):
+        raise InputError(f"the benchmark needs the main demo {os.path.join(DEMOS, 'main.py')} (a source checkout)")
+    if DEMOS not in sys.path:
+        sys.path.insert(0, DEMOS)
+    import main as demo_main
+
+    return demo_main
+
+
+#: Part B verifies every stored point up to this many points, else this many evenly spaced ones.
+VERIFY_MAX_POINTS = 400
+
+
+def worst_residual(system, path, solver=None, batch=128, indices=None) -> float:
+    """Worst relative violation of (1)-(3) over the stored points of a path (or the points
+    ``indices``); lazy displacements are formed in batches and dropped."""
+    import cfcontact
+
+    return max((cfcontact.verify(system, y, alpha, solver=solver).worst()
+                for alpha, y in path.iter_points(batch, indices)), default=0.0)
+
+
+def peak_rss_gib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # ru_maxrss is in KiB on Linux
+
+
+def mesh_for(n_target: float):
+    """(nx, ny, n) of a two-block mesh with nx = 3 ny and n = 4 nx (ny + 1) ~ n_target."""
+    ny = max(2, int(round((-1.0 + math.sqrt(1.0 + n_target / 3.0)) / 2.0)))
+    nx = 3 * ny
+    return nx, ny, 4 * nx * (ny + 1)
+
+
+# ====================================================================== Part A
+def _method_result(path, system, solver, wall, extra=None):
+    mult, at = path.max_multiplicity()
+    return {"status": path.status, "transitions": len(path.transitions), "folds": len(path.folds),
+            "branches": len(path.branches), "points": len(path.alphas), "max_multiplicity": mult,
+            "alpha_of_max": at, "wall_time": wall, "events": [e.kind for e in path.events],
+            "worst_residual": worst_residual(system, path, solver), **(extra or {})}
+
+
+def compare_paths(seed, exact, friction) -> dict:
+    """Same sequence of set changes (node, set, kind)?  Transition alphas within the seed's h_min?"""
+    from cfcontact.exact import canonical_codes
+
+    ks = [(t.node, t.set, t.kind) for t in seed.transitions]
+    ke = [(t.node, t.set, t.kind) for t in exact.transitions]
+    h_min = float(seed.options.get("h_min", 1e-5))
+    same = ks == ke
+    diffs = [abs(a.alpha - b.alpha) for a, b in zip(seed.transitions, exact.transitions)]
+    in_bracket = all(s.bracket[0] - 1e-12 <= e.alpha <= s.bracket[1] + 1e-12
+                     for s, e in zip(seed.transitions, exact.transitions))
+    first = next((i for i, (a, b) in enumerate(zip(ks, ke)) if a != b), None if same else min(len(ks), len(ke)))
+    sets_s = [canonical_codes(b.sets, friction).tolist() for b in seed.branches]
+    sets_e = [canonical_codes(b.sets, friction).tolist() for b in exact.branches]
+    return {"same_set_changes": same, "first_difference": first, "h_min": h_min,
+            "max_alpha_difference": max(diffs, default=0.0),
+            "alphas_within_h_min": bool(same and all(d <= h_min for d in diffs)),
+            "exact_alpha_in_seed_bracket": bool(same and in_bracket),
+            "same_branch_sets": sets_s == sets_e}
+
+
+def part_a(quick=False, frictions=None, log=print, repeat=1) -> list:
+    """Seed vs exact for every F; each method runs ``repeat`` times (fresh solver each time) and
+    its time is the fastest run (the paths are identical; the noise of a shared machine only
+    adds time)."""
+    import cfcontact
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.ssnm import DirNeuSolver
+
+    dm = demo()
+    out = []
+    for F in (frictions or dm.DEMO_FRICTIONS):
+        t0 = time.perf_counter()
+        system = dm.build(F, quick=quick)
+        t_asm = time.perf_counter() - t0
+        # seed: default PETSc backend (fresh solver so its counters are this run's)
+        seed_times, exact_times = [], []
+        for _ in range(max(1, int(repeat))):
+            t0 = time.perf_counter()
+            ssolver = DirNeuSolver(system)
+            sp_ = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="seed", solver=ssolver)
+            seed_times.append(time.perf_counter() - t0)
+        t_seed = min(seed_times)
+        st = ssolver.stats.as_dict()
+        seed = _method_result(sp_, system, ssolver, t_seed, {
+            "linear_solves": st["linear_solves"], "factorizations": st["factorizations"],
+            "ssnm_iterations": st["ssnm_iterations"], "wall_times": seed_times})
+        # exact: condensed backend, its construction (K factorization, S) counted in the wall time
+        for _ in range(max(1, int(repeat))):
+            t0 = time.perf_counter()
+            csolver = CondensedSolver(system)
+            t_setup = time.perf_counter() - t0
+            ep = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=csolver)
+            exact_times.append((time.perf_counter() - t0, t_setup))
+        t_exact, t_setup = min(exact_times)
+        ct = csolver.stats.as_dict()
+        exact = _method_result(ep, system, csolver, t_exact, {
+            "linear_solves": ct["linear_solves"], "linear_solves_path": ep.stats.get("linear_solves"),
+            "K_factorizations": ct["factorizations"], "dense_factorizations": ct["dense_factorizations"],
+            "dense_solves": ct["dense_solves"], "ssnm_iterations": ct["ssnm_iterations"],
+            "setup_time": t_setup, "condensation_time": csolver.timings["condensation"],
+            "path_time": t_exact - t_setup, "wall_times": [t for t, _ in exact_times]})
+        exact["linear_solves_with_verification"] = csolver.stats.linear_solves
+        res = {"friction": F, "n": system.n, "m": system.m, "assembly_time": t_asm, "seed": seed, "exact": exact,
+               "speedup": t_seed / max(t_exact, 1e-300), **compare_paths(sp_, ep, F)}
+        out.append(res)
+        log(f"  F = {F:g}: seed {t_seed:.2f} s, exact {t_exact:.3f} s, speed-up {res['speedup']:.0f}, "
+            f"same set changes: {res['same_set_changes']}")
+    return out
+
+
+def table_a(rows) -> str:
+    head = (f"{'F':>5} {'n':>6} {'m':>4} {'method':>6} {'solves':>7} {'K fact.':>7} {'dense f.':>8} "
+            f"{'time [s]':>9} {'trans.':>6} {'folds':>5} {'max sol':>7} {'residual':>9} {'speed-up':>8} "
+            f"{'same seq.':>9} {'max |da|':>9}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        for name in ("seed", "exact"):
+            d = r[name]
+            kf = d["factorizations"] if name == "seed" else d["K_factorizations"]
+            dense = "-" if name == "seed" else str(d["dense_factorizations"])
+            tail = (f"{r['speedup']:>8.0f} {str(r['same_set_changes']):>9} {r['max_alpha_difference']:>9.1e}"
+                    if name == "exact" else "")
+            lines.append(f"{r['friction']:>5g} {r['n']:>6} {r['m']:>4} {name:>6} {d['linear_solves']:>7} {kf:>7} "
+                         f"{dense:>8} {d['wall_time']:>9.3f} {d['transitions']:>6} {d['folds']:>5} "
+                         f"{d['max_multiplicity']:>7} {d['worst_residual']:>9.1e} {tail}".rstrip())
+    return "\n".join(lines)
+
+
+# ====================================================================== Part B
+def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
+    from petsc4py import PETSc
+
+    for kv in petsc_options:
+        k, _, v = kv.partition("=")
+        PETSc.Options()[k.lstrip("-")] = v
+    PETSc.Log.begin()
+    import cfcontact
+    from cfcontact.condensed import CondensedSolver
+
+    dm = demo()
+    res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly"}
+
+    def dump():  # partial results survive a crash / kill
+        print("BENCH-PARTIAL " + json.dumps(res), flush=True)
+
+    t0 = time.perf_counter()
+    system = cfcontact.two_blocks(nx=nx, ny=ny, friction=friction, tractions1=dm.DEMO_F1, tractions2=dm.DEMO_F2,
+                                  **dm.DEMO_MODEL)
+    res.update(n=system.n, m=system.m, assembly_time=time.perf_counter() - t0, rss_after_assembly_gib=peak_rss_gib(),
+               stage="factorization")
+    dump()
+    t0 = time.perf_counter()
+    solver = CondensedSolver(system)
+    t_setup = time.perf_counter() - t0
+    t_fact = sum(PETSc.Log.Event(e).getPerfInfo()["time"] for e in ("MatLUFactorSym", "MatLUFactorNum"))
+    t_cond = solver.timings["condensation"]
+    res.update(factorization_time=t_fact, condensation_time=t_cond, setup_other_time=t_setup - t_fact - t_cond,
+               condensation=solver.condensation, rss_after_condensation_gib=peak_rss_gib(), stage="path")
+    try:
+        fm = solver.ksp.getPC().getFactorMatrix()
+        res["mumps_info"] = {"INFOG(3) factor entries est.": fm.getMumpsInfog(3),
+                             "INFOG(9) factor entries": fm.getMumpsInfog(9),
+                             "INFOG(21) MB per proc": fm.getMumpsInfog(21), "ICNTL(7)": fm.getMumpsIcntl(7),
+                             "ICNTL(14)": fm.getMumpsIcntl(14), "INFOG(7) ordering": fm.getMumpsInfog(7)}
+    except Exception as exc:  # not MUMPS
+        res["mumps_info"] = str(exc)
+    dump()
+    prof = {}
+    import cProfile
+    import pstats
+
+    pr = cProfile.Profile()
+    solves0 = solver.stats.linear_solves
+    t0 = time.perf_counter()
+    pr.enable()
+    path = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=solver)
+    pr.disable()
+    t_path = time.perf_counter() - t0
+    stats = pstats.Stats(pr)
+    for (fname, line, func), (cc, nc, tt, ct, callers) in stats.stats.items():
+        prof[f"{os.path.basename(fname)}:{func}"] = prof.get(f"{os.path.basename(fname)}:{func}", 0.0) + tt
+    top = sorted(prof.items(), key=lambda kv: -kv[1])[:8]
+    st = solver.stats.as_dict()
+    res.update(path_time=t_path, status=path.status, transitions=len(path.transitions), folds=len(path.folds),
+               branches=len(path.branches), points=len(path.alphas), K_factorizations=st["factorizations"],
+               linear_solves=st["linear_solves"], linear_solves_path=st["linear_solves"] - solves0,
+               dense_factorizations=st["dense_factorizations"], dense_solves=st["dense_solves"],
+               profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify",
+               events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message} for e in path.events][:20])
+    dump()
+    t0 = time.perf_counter()
+    res["max_multiplicity"] = path.max_multiplicity()[0]
+    res["multiplicity_time"] = time.perf_counter() - t0
+    if verify_points:
+        P = len(path.alphas)
+        idx = None if P <= VERIFY_MAX_POINTS else np.unique(np.linspace(0, P - 1, VERIFY_MAX_POINTS).round().astype(int))
+        t0 = time.perf_counter()
+        res["worst_residual"] = worst_residual(system, path, solver, indices=idx)
+        res["verify_time"] = time.perf_counter() - t0
+        res["verified_points"] = P if idx is None else int(len(idx))
+    total = res["assembly_time"] + t_fact + t_cond + res["setup_other_time"] + t_path
+    base = res["assembly_time"] + t_fact
+    res.update(total_time=total, ratio=total / base, peak_rss_gib=peak_rss_gib(), stage="done")
+    return res
+
+
+def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
+    nx, ny, n_est = mesh_for(n_target)
+    cmd = [sys.executable, "-m", "cfcontact.bench", "--worker-b", f"{nx},{ny},{friction!r}"]
+    for o in petsc_options:
+        cmd += ["--petsc-option", o]
+    log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env)
+        out, err, rc = proc.stdout, proc.stderr, proc.returncode
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        err, rc = f"timeout after {timeout} s", "timeout"
+    res = {"n_target": n_target, "nx": nx, "ny": ny}
+    for line in out.splitlines():
+        if line.startswith("BENCH-PARTIAL ") or line.startswith("BENCH-RESULT "):
+            res.update(json.loads(line.split(" ", 1)[1]))
+    res["returncode"] = rc
+    res["elapsed"] = time.perf_counter() - t0
+    if rc != 0:
+        res["error"] = (err or "")[-3000:]
+        res["failed_in_stage"] = res.get("stage")
+        log(f"    FAILED ({rc}) in stage {res.get('stage')}: {(err or '').strip().splitlines()[-1:] or ''}")
+    return res
+
+
+def table_b(rows) -> str:
+    head = (f"{'n':>8} {'m':>4} {'assembly':>9} {'factor K':>9} {'condense':>9} {'path':>9} {'total':>9} "
+            f"{'ratio':>6} {'trans.':>6} {'dense f.':>8} {'peak GiB':>8} {'residual':>9} {'status':>10}")
+    lines = [head, "-" * len(head)]
+    f = lambda r, k, w=9, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
+    for r in rows:
+        status = r.get("status") or f"FAIL:{r.get('failed_in_stage')}"
+        lines.append(f"{r.get('n', r.get('n_target')):>8} {r.get('m', r.get('nx')):>4} {f(r, 'assembly_time')} "
+                     f"{f(r, 'factorization_time')} {f(r, 'condensation_time')} {f(r, 'path_time')} "
+                     f"{f(r, 'total_time')} {f(r, 'ratio', 6, 1)} {r.get('transitions', '-'):>6} "
+                     f"{r.get('dense_factorizations', '-'):>8} {f(r, 'peak_rss_gib', 8, 2)} "
+                     f"{r.get('worst_residual', float('nan')):>9.1e} {status:>10}")
+    return "\n".join(lines)
+
+
+# ====================================================================== main
+def add_arguments(ap):
+    """The benchmark's options (shared by ``demos/bench.py`` and ``cfcontact bench``)."""
+    ap.add_argument("--quick", action="store_true", help="coarse demo mesh in Part A, small sizes in Part B")
+    ap.add_argument("--sizes", help="Part B target DOF counts, comma separated (default 1e4,1.2e5,1e6; "
+                                    "--quick: 2e3,1e4)")
+    ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
+    ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
+    ap.add_argument("--part", default="AB", help="A, B or AB (default)")
+    ap.add_argument("--repeat", type=int, help="Part A: run each method this many times and report the fastest "
+                                               "(default 3; --quick: 1)")
+    ap.add_argument("--timeout", type=float, default=4 * 3600.0, help="per-size time limit of Part B [s]")
+    ap.add_argument("--petsc-option", action="append", default=[],
+                    help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
+    return ap
+
+
+def run(args, argv_text="") -> int:
+    """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
+    part = str(args.part).upper()
+    if not part or set(part) - {"A", "B"}:
+        raise InputError(f"--part must be A, B or AB, got {args.part!r}")
+    try:
+        sizes = [float(s) for s in args.sizes.split(",")] if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
+    except ValueError:
+        raise InputError(f"--sizes must be comma-separated numbers, got {args.sizes!r}") from None
+    if any(not (s >= 100) for s in sizes):
+        raise InputError(f"--sizes must be DOF counts >= 100, got {args.sizes!r}")
+    repeat = getattr(args, "repeat", None)
+    repeat = repeat if repeat is not None else (1 if args.quick else 3)
+    if repeat < 1:
+        raise InputError(f"--repeat must be >= 1, got {repeat}")
+    dm = demo()
+    result = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
+                          "loadavg_start": os.getloadavg()},
+              "demo": {"model": dm.DEMO_MODEL, "f1": dm.DEMO_F1, "f2": dm.DEMO_F2,
+                       "frictions": list(dm.DEMO_FRICTIONS), "alpha": list(dm.DEMO_ALPHA)},
+              "quick": bool(args.quick), "command": argv_text}
+    os.makedirs(args.output, exist_ok=True)
+    jpath = os.path.join(args.output, "bench.json")
+
+    def save():
+        with open(jpath, "w") as fh:
+            json.dump(result, fh, indent=1, default=float)
+
+    if "A" in part:
+        print("Part A: seed vs exact on the main demo" + (" (quick mesh)" if args.quick else ""), flush=True)
+        result["repeat"] = repeat
+        result["part_a"] = part_a(quick=args.quick, repeat=repeat)
+        save()
+        print(table_a(result["part_a"]), "\n", flush=True)
+    if "B" in part:
+        if args.skip_large:
+            sizes = [s for s in sizes if s <= LARGE]
+        F = max(dm.DEMO_FRICTIONS)
+        print(f"Part B: exact method, condensed backend, F = {F:g}", flush=True)
+        result["part_b"] = []
+        for s in sizes:
+            result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
+            save()
+        print(table_b(result["part_b"]), flush=True)
+        print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
+    result["machine"]["loadavg_end"] = os.getloadavg()
+    save()
+    print(f"\nwritten {os.path.abspath(jpath)}")
+    return 0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(ap)
+    ap.add_argument("--worker-b", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker_b:
+        nx, ny, F = args.worker_b.split(",")
+        res = worker_b(int(nx), int(ny), float(F), args.petsc_option)
+        print("BENCH-RESULT " + json.dumps(res), flush=True)
+        return 0
+    try:
+        return run(args, " ".join(["cfcontact.bench"] + list(sys.argv[1:] if argv is None else argv)))
+    except InputError as exc:
+        print(f"bench: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

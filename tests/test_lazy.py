@@ -1,0 +1,134 @@
+"""Condensed backend: lazy branches (multipliers only, u formed on demand), the MUMPS Schur
+complement for S, reduced dense systems, batched displacements and the condensed SSNM."""
+
+import numpy as np
+import pytest
+
+import cfcontact
+from cfcontact.condensed import CondensedSolver
+from cfcontact.exact import canonical_codes
+from cfcontact.lumped import one_node, random_system
+from cfcontact.ssnm import DirNeuSolver, InactiveSets
+
+
+def keys(path, friction):
+    return [canonical_codes(b.sets, friction).tolist() for b in path.branches]
+
+
+@pytest.fixture(scope="module")
+def systems():
+    return [random_system(5, seed, friction=1.3, extra_dofs=4) for seed in range(3)]
+
+
+def test_lazy_exact_path_equals_eager_path(systems, tmp_path):
+    for k, system in enumerate(systems):
+        solver = CondensedSolver(system)
+        lazy = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+        eager = cfcontact.trace_path(system, 0.0, 1.0, method="exact")  # DirNeuSolver: Y1, Y2 per branch
+        assert lazy.status == eager.status == "completed"
+        assert lazy.lazy and not eager.lazy
+        assert keys(lazy, 1.3) == keys(eager, 1.3)
+        # no displacement is needed for multiplicities and multiplier components
+        solves = solver.stats.linear_solves
+        (ml, al), (me, ae) = lazy.max_multiplicity(), eager.max_multiplicity()
+        assert ml == me and abs(al - ae) <= 1e-10
+        for a in np.linspace(0, 1, 7):
+            assert lazy.multiplicity(a) == eager.multiplicity(a)
+        comp = lazy.component(("lam_n", 1))
+        assert lazy.lazy and solver.stats.linear_solves == solves
+        assert np.allclose(comp, eager.component(("lam_n", 1)), rtol=0, atol=1e-10 * np.abs(comp).max())
+        # residuals of every stored point without keeping u
+        for alpha, y in lazy.iter_points(batch=3):
+            assert cfcontact.verify(system, y, alpha, solver=solver).ok(1e-10)
+        assert lazy.lazy
+        # solutions_at forms only what it needs, equal to the eager path's
+        for a in (0.1, 0.5, 0.9):
+            s1, s2 = lazy.solutions_at(a), eager.solutions_at(a)
+            assert len(s1) == len(s2)
+            for x, y in zip(s1, s2):
+                assert np.abs(x.y - y.y).max() <= 1e-10 * np.abs(y.y).max()
+        # every point, and the saved file, equal the eager path's
+        ys = lazy.ys
+        assert not lazy.lazy
+        assert np.abs(ys - eager.ys).max() <= 1e-10 * np.abs(eager.ys).max()
+        back = cfcontact.SolutionPath.load(lazy.save(tmp_path / f"p{k}"))
+        assert np.array_equal(back.ys, ys) and not back.lazy
+        for b in lazy.branches:
+            assert np.array_equal(back.branch_y(b.index, 0.3), lazy.branch_y(b.index, 0.3))
+
+
+def test_lazy_points_by_index_and_save_before_forming(systems, tmp_path):
+    system = systems[0]
+    solver = CondensedSolver(system)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    y_last = path._ys[-1]  # one point: formed on access
+    assert y_last.shape == (system.n + 2 * system.m,)
+    assert cfcontact.verify(system, y_last, path.alphas[-1], solver=solver).ok(1e-10)
+    back = cfcontact.SolutionPath.load(path.save(tmp_path / "p"))  # save forms everything
+    assert not path.lazy and np.array_equal(back.ys, path.ys)
+    pts = list(path.iter_points(indices=[0, len(path.alphas) - 1]))
+    assert len(pts) == 2 and np.array_equal(pts[1][1], path.ys[-1])
+
+
+def test_exact_callback_sees_displacements_with_lazy_branches(systems):
+    system = systems[1]
+    seen = []
+    cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system),
+                         callback=lambda p: seen.append(p) and False)
+    assert seen
+    for p in seen:
+        assert cfcontact.verify(system, p.solution, p.alpha).ok(1e-10)
+
+
+@pytest.mark.parametrize("fem", [False, True])
+def test_schur_complement_matches_solves(fem):
+    system = (cfcontact.two_blocks(nx=9, ny=3, friction=0.5, tractions1={"top1": (1e7, -1e8)},
+                                   tractions2={"top1": (1e8, -1e7)}) if fem
+              else random_system(4, 7, friction=0.8, extra_dofs=6))
+    a, b = CondensedSolver(system, schur=True), CondensedSolver(system, schur=False)
+    assert a.condensation == "schur" and b.condensation == "solves"
+    assert np.abs(a.S - b.S).max() <= 1e-10 * np.abs(b.S).max()
+    assert a.stats.linear_solves == 0 and b.stats.linear_solves == 2 * system.m
+    rng = np.random.default_rng(1)
+    full = DirNeuSolver(system)
+    for _ in range(5):
+        Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
+        f = system.load(rng.uniform(0, 1))
+        ya, yf = a.solve(Z, f), full.solve(Z, f)
+        assert np.abs(ya - yf).max() <= 1e-9 * np.abs(yf).max()
+
+
+def test_schur_needs_interior_dofs_and_falls_back():
+    system = one_node(2.5)  # every DOF is a contact DOF: no Schur complement, S by solves
+    assert CondensedSolver(system).condensation == "solves"
+    with pytest.raises(cfcontact.InputError):
+        CondensedSolver(system, schur=True)
+
+
+def test_reduced_multipliers_and_batched_displacements():
+    system = random_system(5, 3, friction=[0.0, 0.4, 1.1, 2.0, 0.7], extra_dofs=3)
+    solver = CondensedSolver(system)
+    f1, f2 = system.loads_numpy()
+    w = solver.load_data(f1)
+    rng = np.random.default_rng(5)
+    lams, alphas = [], []
+    for _ in range(10):
+        Z = InactiveSets(rng.random(5) < 0.3, rng.random(5) < 0.4, rng.random(5) < 0.4)
+        lam = solver.multipliers(Z, w)
+        ref = np.linalg.solve(solver.matrix(Z), solver.rhs(Z, w))  # the full 2m x 2m form
+        assert np.abs(lam - ref).max() <= 1e-10 * max(np.abs(ref).max(), 1e-300)
+        lams.append(lam)
+        alphas.append(rng.uniform(-0.5, 1.5))
+    U = solver.displacements(np.column_stack(lams), alphas)
+    for j, (lam, a) in enumerate(zip(lams, alphas)):
+        u = solver.displacement(system.load(a), lam)
+        assert np.abs(U[:, j] - u).max() <= 1e-12 * np.abs(u).max()
+
+
+def test_condensed_ssnm_matches_full_ssnm(systems):
+    for system in systems:
+        for a in (0.0, 0.4, 1.0):
+            sc = cfcontact.ssnm(system, a, solver=CondensedSolver(system))
+            sf = cfcontact.ssnm(system, a, solver=DirNeuSolver(system))
+            assert np.abs(sc.y - sf.y).max() <= 1e-10 * np.abs(sf.y).max()
+            assert sc.sets.equivalent(sf.sets, system.friction)
