@@ -13,7 +13,7 @@ import os
 import sys
 from types import MappingProxyType
 
-__all__ = ["two_blocks", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTIONS2"]
+__all__ = ["two_blocks", "arc_on_block", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTIONS2"]
 
 #: Default surface tractions (Pa = N/m^2, force per unit length in 2-D) of the load f1:
 #: a downward pressure of 1e8 on the top of body 1 with a small shear (ratio 0.2).
@@ -92,7 +92,8 @@ def two_blocks(
     each is meshed with ``nx x ny`` cells (quadrilaterals, or triangles = each
     quadrilateral split in two) and, by default, clamped along its left edge
     (``left1``, ``left2``).  Defaults: 30 x 10 cells, length 3, height 1, steel
-    (E = 2.1e11 Pa, nu = 0.3), plane strain -> n = 1320, m = 30.
+    (E = 2.1e11 Pa, nu = 0.3), plane strain -> n = 1320, m = 30.  ``E`` and ``nu`` may also be
+    dicts with one value per body, e.g. ``E={"body1": 2.1e11, "body2": 2.1e8}``.
 
     Loads: ``tractions1`` / ``tractions2`` (dicts ``{boundary piece: (tx, ty)}``,
     pieces ``top1, right1, left1, bottom2, right2, left2``) and ``body_force1`` /
@@ -130,5 +131,66 @@ def two_blocks(
     if comm.rank == 0:
         with compat.gmsh_model("cfcontact-two-blocks") as model:
             geo.build(foundation=foundation, **params)
+            return assemble_contact_system(model, info=info, **kwargs)
+    return assemble_contact_system(None, info=info, **kwargs)
+
+
+def arc_on_block(
+    *,
+    radius=1.0,
+    half_angle=30.0,
+    height=0.5,
+    height2=None,
+    nx=16,
+    ny=4,
+    ny2=None,
+    cell="quadrilateral",
+    E=2.1e11,
+    nu=0.3,
+    plane="strain",
+    friction=0.0,
+    clamp=("left1", "bottom2"),
+    tractions1=DEFAULT_TRACTIONS1,
+    tractions2=DEFAULT_TRACTIONS2,
+    body_force1=None,
+    body_force2=None,
+    rho=None,
+    comm=None,
+    match_tol=1e-8,
+):
+    """A body with a convex circular-arc bottom in a matching concave seat: a curved interface.
+
+    Body 2 is a block whose top is a concave arc of radius ``radius`` and half-angle
+    ``half_angle`` (degrees, in (0, 80]) centred at ``(0, radius)``, lowest point at the origin;
+    body 1 sits in it, its bottom the matching convex arc, its sides ``height`` high above the
+    ends of the arc, its top flat.  Body 2 is ``height2`` (default ``height``) thick below the
+    lowest point.  ``nx`` cells along the arc, ``ny`` / ``ny2`` across body 1 / body 2
+    (structured quadrilaterals or triangles, see ``meshes/arc_on_block.py``).  The contact
+    normals are radial: they turn by ``2 * half_angle`` along the interface.
+
+    The interface is **conforming** (the bodies touch along the whole arc; initial gaps are not
+    modelled).  Default clamps: ``left1`` (side of body 1) and ``bottom2`` (base of the seat);
+    default loads as in :func:`two_blocks` on ``top1``.  Tags: ``top1, right1, left1, bottom2,
+    right2, left2``.  The remaining arguments go to
+    :func:`cfcontact.assembly.assemble_contact_system`.
+    """
+    from mpi4py import MPI
+
+    from cfcontact import compat  # imports dolfinx
+    from cfcontact.assembly import assemble_contact_system
+
+    comm = MPI.COMM_WORLD if comm is None else comm
+    geo = _meshes_module("arc_on_block")
+    params = geo.check_parameters(radius=radius, half_angle=half_angle, height=height, height2=height2,
+                                  nx=nx, ny=ny, ny2=ny2, cell=cell)
+    kwargs = dict(
+        E=E, nu=nu, plane=plane, clamp=clamp, tractions1=tractions1, tractions2=tractions2,
+        body_force1=body_force1, body_force2=body_force2,
+        friction=friction, rho=rho, comm=comm, match_tol=match_tol,
+    )
+    info = {"model": "arc_on_block", "model_parameters": dict(params)}
+    if comm.rank == 0:
+        with compat.gmsh_model("cfcontact-arc-on-block") as model:
+            geo.build(**params)
             return assemble_contact_system(model, info=info, **kwargs)
     return assemble_contact_system(None, info=info, **kwargs)

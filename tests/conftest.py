@@ -41,5 +41,5 @@ def pytest_collection_modifyitems(session, config, items):
     hook in the venv that loads VTK's core before dolfinx; running render tests first is a second
     guard for runs outside that venv.
     """
-    first = ("test_render.py", "test_cli.py")
+    first = ("test_render.py", "test_cli.py", "test_variants.py")
     items.sort(key=lambda item: 0 if item.fspath.basename in first else 1)

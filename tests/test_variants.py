@@ -1,0 +1,227 @@
+"""Geometry variants: the arc-in-a-seat model (curved interface), the folds example case and the
+README pictures (demos/pictures.py)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+import cfcontact
+from cfcontact import cli
+from cfcontact.errors import GeometryError, InputError
+from cfcontact.models import _meshes_module
+from cfcontact.path import SolutionPath
+from reference import frictionless_dual
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CASES = os.path.join(ROOT, "demos", "cases")
+VARIANTS = ("two_blocks", "foundation", "arc", "inclined", "user_msh")
+
+
+def _env():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def _assert_picture(fn, size=None):
+    """A PNG of the given (width, height) that is not blank (as in test_cli)."""
+    assert os.path.isfile(fn), fn
+    with open(fn, "rb") as fh:
+        assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
+    img = imread(fn)
+    if img.dtype != np.uint8:
+        img = (img[..., :3] * 255).round()
+    img = np.asarray(img[..., :3], dtype=int)
+    if size is not None:
+        assert (img.shape[1], img.shape[0]) == tuple(size)
+    flat = img.reshape(-1, 3)
+    assert flat.std() > 5, f"{fn} is blank"
+    assert len(np.unique(flat, axis=0)) >= 20
+
+
+def _copy_case(tmp_path, name):
+    shutil.copy(os.path.join(CASES, name), tmp_path / name)
+    return str(tmp_path / name)
+
+
+# ------------------------------------------------------------------ arc on block: geometry
+@pytest.mark.parametrize("kwargs,words,error", [
+    (dict(half_angle=0.0), ["half_angle", "(0, 80]", "0.0"], GeometryError),
+    (dict(half_angle=95), ["half_angle", "(0, 80]", "95"], GeometryError),
+    (dict(half_angle="wide"), ["half_angle", "number", "'wide'"], InputError),
+    (dict(radius=-1.0), ["radius", "positive", "-1.0"], InputError),
+    (dict(height2=0), ["height2", "positive"], InputError),
+    (dict(nx=1), ["nx", ">= 2", "1"], InputError),
+    (dict(ny=2.5), ["ny", "integer", "2.5"], InputError),
+    (dict(cell="hexagon"), ["cell", "quadrilateral", "hexagon"], InputError),
+])
+def test_arc_parameters_validated(kwargs, words, error):
+    geo = _meshes_module("arc_on_block")
+    with pytest.raises(error) as info:
+        geo.check_parameters(**kwargs)
+    for w in words:
+        assert w in str(info.value), (w, str(info.value))
+    with pytest.raises(error):  # the library function validates before building anything
+        cfcontact.arc_on_block(**kwargs)
+
+
+@pytest.fixture(scope="module")
+def arc_model():
+    return cfcontact.arc_on_block(radius=1.0, half_angle=40.0, nx=12, ny=3, friction=0.0)
+
+
+def test_arc_contact_normals_radial_unit_outward(arc_model):
+    """Pairs coincide, normals are unit, radial inside the arc (they vary along it) and point out of body 1."""
+    g = arc_model.geometry
+    R, theta, nx = 1.0, np.radians(40.0), 12
+    assert arc_model.m == nx + 1  # the clamped left1 end node still pairs with a free body-2 node
+    pairs = np.asarray(g.contact_nodes)
+    pts = np.asarray(g.points)[:, :2]
+    assert np.all(pairs[:, 1] >= 0)
+    np.testing.assert_allclose(pts[pairs[:, 0]], pts[pairs[:, 1]], rtol=0, atol=1e-12)
+    x = np.asarray(g.contact_points)[:, :2]
+    # on the circle of radius R about (0, R), at angles -theta..theta, uniformly, ordered left to right
+    centre = np.array([0.0, R])
+    np.testing.assert_allclose(np.hypot(*(x - centre).T), R, rtol=0, atol=1e-7)
+    phi = np.arctan2(x[:, 0], R - x[:, 1])
+    np.testing.assert_allclose(phi, np.linspace(-theta, theta, nx + 1), rtol=0, atol=1e-7)
+    n, t = np.asarray(g.normals), np.asarray(g.tangents)
+    np.testing.assert_allclose(np.hypot(n[:, 0], n[:, 1]), 1.0, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(t, np.column_stack([-n[:, 1], n[:, 0]]), rtol=0, atol=0)
+    # interior nodes: the average of the two adjacent facet normals is exactly radial
+    radial = np.column_stack([np.sin(phi), -np.cos(phi)])
+    np.testing.assert_allclose(n[1:-1], radial[1:-1], rtol=0, atol=1e-7)
+    # end nodes: the normal of their one facet
+    for end, d in ((0, x[1] - x[0]), (-1, x[-1] - x[-2])):  # facets oriented left to right
+        np.testing.assert_allclose(n[end], np.array([d[1], -d[0]]) / np.hypot(*d), rtol=0, atol=1e-7)
+    # the normals really turn: by 2 theta minus half a cell at each end, monotonically
+    ang = np.arctan2(n[:, 0], -n[:, 1])
+    assert np.all(np.diff(ang) > 0)
+    np.testing.assert_allclose(ang[-1] - ang[0], 2 * theta - 2 * theta / nx, rtol=0, atol=1e-7)
+    # outward for body 1: away from the arc's centre (body 1 lies on the centre's side) and away
+    # from the body-1 cells next to each contact node
+    assert np.all(np.sum(n * (x - centre), axis=1) > 0)
+    cells, body = np.asarray(g.cells), np.asarray(g.cell_body)
+    for k, node in enumerate(pairs[:, 0]):
+        adj = cells[(body == 1) & np.any(cells == node, axis=1)]
+        assert len(adj) >= 1
+        cent = pts[adj].mean(axis=1)
+        assert np.all((x[k] - cent) @ n[k] > 0), k
+
+
+def test_arc_frictionless_against_dual_qp(arc_model):
+    """F = 0: SSNM against SciPy's dual QP (NNLS), with contact active somewhere and open somewhere."""
+    K, N, T, f1, f2 = arc_model.to_scipy()
+    saw_open = saw_active = False
+    for alpha in (0.0, 0.5, 1.0):
+        f = (1 - alpha) * f1 + alpha * f2
+        u_ref, lam_ref = frictionless_dual(K, N, f)
+        sol = cfcontact.ssnm(arc_model, alpha)
+        assert np.allclose(sol.u, u_ref, rtol=0, atol=1e-8 * np.abs(u_ref).max())
+        assert np.allclose(sol.lam_n, lam_ref, rtol=0, atol=1e-8 * np.abs(lam_ref).max())
+        saw_active |= bool(np.any(lam_ref > 1e-6 * lam_ref.max()))
+        saw_open |= bool(np.any(lam_ref <= 1e-12 * lam_ref.max()))
+    assert saw_active and saw_open
+
+
+def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
+    msh = tmp_path / "arc.msh"
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(msh),
+                           "--half-angle", "40", "--nx", "12", "--ny", "3"],
+                          capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    system = cfcontact.assemble_contact_system(str(msh), clamp=("left1", "bottom2"),
+                                               tractions1={"top1": (2e7, -1e8)}, tractions2={"top1": (1e8, -2e7)})
+    assert (system.n, system.m) == (arc_model.n, arc_model.m)
+    np.testing.assert_allclose(system.geometry.normals, arc_model.geometry.normals, rtol=0, atol=1e-12)
+    bad = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(tmp_path / "b.msh"),
+                          "--half-angle", "120"], capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
+    assert bad.returncode == 2 and "half_angle" in bad.stderr and not (tmp_path / "b.msh").exists()
+
+
+# ------------------------------------------------------------------ arc on block: command line
+def test_arc_example_case_runs(tmp_path):
+    case = _copy_case(tmp_path, "arc.toml")
+    assert cli.main(["run", case, "-q"]) == 0
+    out = tmp_path / "arc_out"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["m"] == 17
+    assert len(summary["transitions"]) > 0
+    _assert_picture(str(out / "panel.png"), (800, 500))
+    _assert_picture(str(out / "path.png"), (800, 450))
+    path = SolutionPath.load(str(out / "path"))
+    n = np.asarray(path.geometry.normals)
+    assert np.ptp(np.arctan2(n[:, 0], -n[:, 1])) > np.radians(80)  # half-angle 45: the normals turn by ~84 degrees
+
+
+@pytest.mark.parametrize("extra,words", [
+    ("length = 3.0\n", ["length", "kind = 'arc'", "half_angle"]),
+    ("half_angle = 95.0\n", ["half_angle", "(0, 80]", "95"]),
+    ("radius = 0.0\n", ["radius", "positive"]),
+    ("nx = 1\n", ["nx", ">= 2"]),
+])
+def test_arc_case_bad_geometry_exit_2(tmp_path, capsys, extra, words):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nkind = "arc"\n' + extra)
+    assert cli.main(["run", str(case)]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("cfcontact run: error:"), err
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]
+
+
+def test_arc_case_tags_and_default_clamps(tmp_path, capsys):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nkind = "arc"\nnx = 4\nny = 1\n[loads]\nclamp = ["left1", "base"]\n')
+    assert cli.main(["run", str(case)]) == 2
+    err = capsys.readouterr().err
+    assert "base" in err and "bottom2=22" in err
+    # default clamps left1 + bottom2: both bodies held, the model builds
+    system = cli.build_system(cli.validate_case({"geometry": {"kind": "arc", "nx": 4, "ny": 1}}))
+    assert system.m == 5 and system.info["clamp"] == ["left1=14", "bottom2=22"]
+
+
+# ------------------------------------------------------------------ folds example
+def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
+    case = _copy_case(tmp_path, "folds.toml")
+    assert cli.main(["run", case, "-q"]) == 0
+    out = tmp_path / "folds_out"
+    path = SolutionPath.load(str(out / "path"))
+    assert path.status == "completed"
+    assert len(path.folds) >= 2
+    mult, alpha = path.max_multiplicity()
+    assert mult >= 3
+    assert len(path.solutions_at(alpha)) == mult
+    assert cli.main(["info", str(out), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert len(rep["folds"]) >= 2 and max(iv["solutions"] for iv in rep["multiplicity"]) >= 3
+    _assert_picture(str(out / "panel.png"), (800, 500))
+
+
+# ------------------------------------------------------------------ README pictures
+def test_pictures_script_renders_a_variant(tmp_path):
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "arc",
+                           "-o", str(tmp_path), "--window-size", "600", "360"],
+                          capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    fn = tmp_path / "arc.png"
+    _assert_picture(str(fn), (600, 360))
+    assert fn.stat().st_size < 150_000
+    assert sorted(os.listdir(tmp_path)) == ["arc.png"]
+
+
+def test_readme_pictures_present_and_small():
+    readme = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    for v in VARIANTS:
+        fn = os.path.join(ROOT, "docs", "img", f"{v}.png")
+        _assert_picture(fn, (600, 360))
+        assert os.path.getsize(fn) < 150_000, fn
+        assert f"docs/img/{v}.png" in readme, v
