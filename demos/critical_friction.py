@@ -1,0 +1,70 @@
+"""How much friction a model needs before its solution path can fold (cfcontact.critical_friction).
+
+For each model below the script scans the small contact configurations (windows of up to 6
+neighbouring contact nodes, every slip-sign pattern, stick subsets up to 4 nodes) and prints
+the smallest friction coefficient F at which one of them has a DirNeu matrix of negative
+determinant: below it no path can fold through the scanned pieces.  This is the measurement
+behind the README's "Known limits" entry on the seed's F = 0.6: the seed's model has its folds
+at a friction where these two-block models cannot yet fold.
+
+    .venv/bin/python demos/critical_friction.py            # all models (about 30 s)
+    .venv/bin/python demos/critical_friction.py --quick    # coarse meshes (the tests run this)
+    .venv/bin/python demos/critical_friction.py --json out.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import cfcontact
+from cfcontact.critical import critical_friction
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from main import DEMO_MODEL  # noqa: E402  (the main demo's geometry)
+
+STEEL = 2.1e11
+#: (label, two_blocks arguments).  All have n = 1320, m = 30 on the full mesh.
+MODELS = [
+    ("main demo model (steel blocks, quadrilaterals)", dict(DEMO_MODEL)),
+    ("main demo model, triangles", dict(DEMO_MODEL, cell="triangle")),
+    ("equal blocks (height2 = height)", dict(DEMO_MODEL, height2=DEMO_MODEL["height"])),
+    ("steel on a soft layer (E2 = E1/1000, nu2 = 0, height2 = 0.3), triangles",
+     dict(DEMO_MODEL, height2=0.3, cell="triangle", E={"body1": STEEL, "body2": STEEL / 1000},
+          nu={"body1": 0.3, "body2": 0.0})),
+    ("steel on a soft layer, quadrilaterals",
+     dict(DEMO_MODEL, height2=0.3, E={"body1": STEEL, "body2": STEEL / 1000}, nu={"body1": 0.3, "body2": 0.0})),
+    ("steel block on a rigid foundation", dict(DEMO_MODEL, foundation=True)),
+]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="coarse meshes (12 x 4 cells per block)")
+    ap.add_argument("--json", metavar="FILE", help="write the results as JSON")
+    args = ap.parse_args(argv)
+    rows = []
+    print(f"{'model':<72} {'n':>5} {'m':>3} {'critical F':>10}  configuration")
+    for label, kw in MODELS:
+        if args.quick:
+            kw = dict(kw, nx=12, ny=4)
+        t0 = time.perf_counter()
+        system = cfcontact.two_blocks(**kw)
+        crit = critical_friction(system)
+        conf = ", ".join(f"{i}:{s}" for i, s in zip(crit.nodes, crit.states))
+        print(f"{label:<72} {system.n:>5} {system.m:>3} {crit.friction:>10.4g}  {conf}", flush=True)
+        rows.append(dict(model=label, n=system.n, m=system.m, critical_friction=crit.friction,
+                         nodes=crit.nodes, states=crit.states, scanned=crit.scanned,
+                         seconds=time.perf_counter() - t0))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=1)
+    return rows
+
+
+if __name__ == "__main__":
+    main()
