@@ -31,11 +31,13 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "two_blocks": ("cfcontact.models", "two_blocks"),
+    "arc_on_block": ("cfcontact.models", "arc_on_block"),
     "assemble_contact_system": ("cfcontact.assembly", "assemble_contact_system"),
     "trace_path": ("cfcontact.path", "trace_path"),
     "SolutionPath": ("cfcontact.path", "SolutionPath"),
     "PathOptions": ("cfcontact.path", "PathOptions"),
     "enumerate_solutions": ("cfcontact.enumerate", "enumerate_solutions"),
+    "critical_friction": ("cfcontact.critical", "critical_friction"),
     "one_node": ("cfcontact.lumped", "one_node"),
     "trace_exact": ("cfcontact.exact", "trace_exact"),
     "follow_alternative": ("cfcontact.exact", "follow_alternative"),

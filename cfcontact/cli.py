@@ -17,16 +17,17 @@ Subcommands
 Output folder, checkpoints and resume
 -------------------------------------
 A run works in ``<out>.partial/`` and renames it to ``<out>/`` only when everything is
-written, so ``<out>/`` is always complete.  While the path is traced (method ``seed``), a
+written, so ``<out>/`` is always complete.  While the path is traced (either method), a
 checkpoint ``<out>.partial/checkpoint/`` (``path/`` = the partial path, ``state.json`` =
-the loop state: step h, step count, cycle detector, the physics sections of the case) is
-written every ``--checkpoint-every`` seconds (default 60) and whenever the run is stopped
-by Ctrl-C (first Ctrl-C: stop at the next accepted point; second: abort),
-``--time-limit``, ``--stop-after-folds``, ``--stop-after-transitions`` or
-``--stop-at-alpha``.  ``run --resume CASE.toml`` continues from the checkpoint (the last
-branch's inactive sets and orientation, the last alpha and y, the step h) and appends to
-the stored path: the result equals an uninterrupted run.  A failing run removes
-``<out>.partial/`` unless it holds a checkpoint.
+the method's resume state and the physics sections of the case) is written every
+``--checkpoint-every`` seconds (default 60) and whenever the run is stopped by Ctrl-C
+(first Ctrl-C: stop at the next accepted point; second: abort), ``--time-limit``,
+``--stop-after-folds``, ``--stop-after-transitions`` or ``--stop-at-alpha``.
+``run --resume CASE.toml`` continues from the checkpoint (seed: the last branch's inactive
+sets and orientation, the last alpha and y, the step h, the cycle detector; exact: the
+branch being followed -- its sets, orientation and entry alpha -- and the cycle detector)
+and appends to the stored path: the result equals an uninterrupted run.  A failing run
+removes ``<out>.partial/`` unless it holds a checkpoint.
 
 Exit codes: 0 done (path traced, output written), 1 failure, 2 bad input (one message on
 stderr, no output), 3 stopped before the end by a stop condition or the time limit
@@ -39,13 +40,15 @@ Case file (TOML)
     title = "optional free text"
 
     [geometry]
-    kind = "two_blocks"      # | "block_on_foundation" | "inclined" | "msh"
+    kind = "two_blocks"      # | "block_on_foundation" | "inclined" | "arc" | "msh"
     nx = 12                  # cells along the interface      (built-in kinds)
     ny = 4                   # cells across each block        (built-in kinds)
-    length = 3.0             # block width                    (built-in kinds)
+    length = 3.0             # block width                    (block kinds)
     height = 1.0             # block height                   (built-in kinds)
+    # height2 = 0.5          # height of body 2 (default: height)
     cell = "quadrilateral"   # | "triangle"                   (built-in kinds)
     angle = 20.0             # degrees, counter-clockwise; required for "inclined"
+    # radius = 1.0, half_angle = 30.0, ny2 = 4   # kind = "arc" only (no length, angle)
     # file = "model.msh"     # kind = "msh" only: gmsh file, relative to the case file
 
     [material]
@@ -87,8 +90,10 @@ Every section and key is optional except ``[geometry] kind`` (and ``file`` for "
 ``angle`` for "inclined", ``[loads] clamp`` / ``[loads.f1]`` / ``[loads.f2]`` for "msh").
 Built-in kinds default to the library's loads (:data:`cfcontact.models.DEFAULT_TRACTIONS1`
 and ``2``) and clamps (``left1``, ``left2``; ``left1`` on a foundation); their load vectors
-are given in the frame of the unrotated blocks.  Tags follow DESIGN.md: built-in kinds have
-``contact1, top1, right1, left1`` (+ ``contact2, bottom2, right2, left2`` with body 2).
+are given in the frame of the unrotated blocks.  Kind "arc" (:func:`cfcontact.models.arc_on_block`:
+a body with a convex circular-arc bottom in a matching seat, conforming) clamps ``left1`` and
+``bottom2`` by default.  Tags follow DESIGN.md: built-in kinds have ``contact1, top1, right1,
+left1`` (+ ``contact2, bottom2, right2, left2`` with body 2).
 """
 
 from __future__ import annotations
@@ -134,16 +139,20 @@ class _Stopped(Exception):
 
 
 # ============================================================ case schema
-GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "msh")
+GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "arc", "msh")
 METHODS = ("seed", "exact")
 COMPONENT_NAMES = ("u", "lam_n", "lam_t")
 
 # key -> (type, default).  Types: int, float, str, bool, and the composite ones checked below.
 _BUILTIN_GEOMETRY = {"kind": ("str", None), "nx": ("int", None), "ny": ("int", None), "length": ("float", None),
-                     "height": ("float", None), "cell": ("str", None), "angle": ("float", None)}
+                     "height": ("float", None), "height2": ("float", None), "cell": ("str", None),
+                     "angle": ("float", None)}
+_ARC_GEOMETRY = {"kind": ("str", None), "radius": ("float", None), "half_angle": ("float", None),
+                 "height": ("float", None), "height2": ("float", None), "nx": ("int", None), "ny": ("int", None),
+                 "ny2": ("int", None), "cell": ("str", None)}
 SCHEMA = {
     "geometry": None,  # depends on kind: see _geometry_keys
-    "material": {"E": ("float", None), "nu": ("float", None), "plane": ("str", None)},
+    "material": {"E": ("material", None), "nu": ("material", None), "plane": ("str", None)},
     "contact": {"friction": ("friction", 0.0), "rho": ("float", None)},
     "loads": {"clamp": ("tags", None), "f1": ("tractions", None), "f2": ("tractions", None),
               "body_force1": ("body_force", None), "body_force2": ("body_force", None)},
@@ -163,12 +172,15 @@ _TYPE_NAMES = {"int": "an integer", "float": "a number", "str": "a string", "boo
                "tags": "a list of tags (names or numbers)", "tractions": "a table {tag = [tx, ty]}",
                "body_force": "[bx, by] or a table {body = [bx, by]}", "formats": 'a list of "png"/"pdf"',
                "component": '["lam_n", i], "lam_n:i" or an integer', "zoom": "[alpha_lo, alpha_hi] (+ [v_lo, v_hi])",
-               "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them"}
+               "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them",
+               "material": "a number or a table {body = number}"}
 
 
 def _geometry_keys(kind):
     if kind == "msh":
         return {"kind": ("str", None), "file": ("str", None)}
+    if kind == "arc":
+        return dict(_ARC_GEOMETRY)
     return dict(_BUILTIN_GEOMETRY)
 
 
@@ -217,6 +229,12 @@ def _check_value(typ, value, where):
         if not isinstance(value, list) or not all(isinstance(t, (str, int)) and not isinstance(t, bool) for t in value):
             raise bad
         return list(value)
+    if typ == "material":
+        if isinstance(value, dict):
+            if not value:
+                raise bad
+            return {k: _check_value("float", v, f"{where}.{k}") for k, v in value.items()}
+        return _check_value("float", value, where)
     if typ == "tractions":
         if not isinstance(value, dict):
             raise bad
@@ -358,7 +376,8 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
         from cfcontact.models import _meshes_module
 
         try:
-            _meshes_module("two_blocks").check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
+            script = "arc_on_block" if kind == "arc" else "two_blocks"
+            _meshes_module(script).check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
         except (InputError, ValueError) as exc:
             raise CaseError(f"[geometry] {exc}") from None
     case["geometry"] = geometry
@@ -367,10 +386,11 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     material = _check_section("material", raw.get("material", {}), SCHEMA["material"])
     if "plane" in material and material["plane"] not in ("strain", "stress"):
         raise CaseError(f"[material] plane: expected \"strain\" or \"stress\", got {material['plane']!r}")
-    if "E" in material and not material["E"] > 0:
-        raise CaseError(f"[material] E: Young's modulus must be > 0, got {material['E']!r}")
-    if "nu" in material and not -1.0 < material["nu"] < 0.5:
-        raise CaseError(f"[material] nu: Poisson's ratio must lie in (-1, 0.5), got {material['nu']!r}")
+    for key, ok, rule in (("E", lambda v: v > 0, "Young's modulus must be > 0"),
+                          ("nu", lambda v: -1.0 < v < 0.5, "Poisson's ratio must lie in (-1, 0.5)")):
+        for body, v in (material[key].items() if isinstance(material.get(key), dict) else [(None, material.get(key))]):
+            if v is not None and not ok(v):
+                raise CaseError(f"[material] {key}{'' if body is None else '.' + body}: {rule}, got {v!r}")
     case["material"] = material
 
     # ---- contact
@@ -398,6 +418,15 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
         elif isinstance(val, dict):
             for t in val:
                 _check_tag(t, groups, 2 if key.startswith("body") else 1, label)
+    for key in ("E", "nu"):  # per-body material: one value for each body of the model
+        if isinstance(material.get(key), dict):
+            for t in material[key]:
+                _check_tag(t, groups, 2, f"[material] {key}")
+            named = {_body_number(t, groups) for t in material[key]}
+            missing = [name for (dim, num), name in sorted(groups.items()) if dim == 2 and num not in named]
+            if missing:
+                raise CaseError(f"[material] {key}: no value for body {', '.join(missing)}; give one number "
+                                f"per body or a single number")
     case["loads"] = loads
 
     # ---- path
@@ -440,7 +469,7 @@ def _model_groups(kind, geometry) -> dict:
     if kind != "msh":
         from cfcontact.models import _meshes_module
 
-        tags = _meshes_module("two_blocks").TAGS
+        tags = _meshes_module("arc_on_block" if kind == "arc" else "two_blocks").TAGS
         foundation = kind == "block_on_foundation"
         return {(d, n): name for name, (d, n) in tags.items() if not (foundation and (n == 2 or 20 <= n < 30))}
     import gmsh
@@ -465,6 +494,13 @@ def _check_tag(tag, groups, dim, label):
     kind = "boundary tag (1-D physical group)" if dim == 1 else "body tag (2-D physical group)"
     valid = ", ".join(f"{name}={n}" if name else str(n) for (d, n), name in sorted(groups.items()) if d == dim)
     raise CaseError(f"{label}: unknown {kind} {tag!r}; valid: {valid or '(none)'}")
+
+
+def _body_number(tag, groups):
+    """The number of a (checked) body tag: a name, a number or a digit string."""
+    if isinstance(tag, str) and not tag.isdigit():
+        return next(n for (d, n), name in groups.items() if d == 2 and name == tag)
+    return int(tag)
 
 
 def load_case(filename) -> dict:
@@ -495,7 +531,7 @@ def _physics(case) -> dict:
 def build_system(case):
     """The ContactSystem of a validated case (imports the FEM layer)."""
     geo, mat, con, loads = case["geometry"], case["material"], case["contact"], case["loads"]
-    common = dict(mat)
+    common = {k: ({_tag_value(t): x for t, x in v.items()} if isinstance(v, dict) else v) for k, v in mat.items()}
     common["friction"] = con["friction"]
     if "rho" in con:
         common["rho"] = con["rho"]
@@ -512,9 +548,11 @@ def build_system(case):
         from cfcontact.assembly import assemble_contact_system
 
         return assemble_contact_system(geo["file"], info={"model": "msh", "file": geo["file"]}, **common)
-    from cfcontact.models import two_blocks
+    from cfcontact.models import arc_on_block, two_blocks
 
     params = {k: v for k, v in geo.items() if k != "kind"}
+    if geo["kind"] == "arc":
+        return arc_on_block(**params, **common)
     return two_blocks(foundation=geo["kind"] == "block_on_foundation", **params, **common)
 
 
@@ -614,7 +652,7 @@ class _Runner:
         self.trans0 = len(resumed_path.transitions) if resumed_path is not None else 0
         self.prev_alpha = float(resumed_path.alphas[-1]) if resumed_path is not None else None
         self.last_checkpoint = time.monotonic()
-        self.checkpoint_every = args.checkpoint_every if method == "seed" else 0
+        self.checkpoint_every = args.checkpoint_every
         self.warned_folds = False
         self.points = 0
 
@@ -686,7 +724,7 @@ def save_checkpoint(partial, path, case, reason):
     os.makedirs(tmp)
     path.save(os.path.join(tmp, "path"))
     state = {"format": CHECKPOINT_FORMAT, "version": 1, "reason": reason, "time": time.time(),
-             "method": path.method, "resumable": path.method == "seed" and path.resume_state is not None,
+             "method": path.method, "resumable": path.resume_state is not None,
              "resume_state": path.resume_state, "physics": _physics(case),
              "case_file": case["_file"], "summary": _jsonable(path.summary())}
     with open(os.path.join(tmp, "state.json"), "w") as fh:
@@ -997,7 +1035,7 @@ def cmd_run(args):
                        f"continue with: cfcontact run --resume {again}")
         else:
             _say(args, f"cfcontact: {stop.reason}; the partial path is in {os.path.join(partial, 'checkpoint')} "
-                       f"(cfcontact info {partial}); method {method!r} cannot resume: start over with "
+                       f"(cfcontact info {partial}); it left no resume state: start over with "
                        f"cfcontact run --force {again}")
         return stop.code
     except BaseException:
@@ -1045,7 +1083,7 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
                 save_checkpoint(partial, path, case, runner.reason)
                 if runner.reason != "checkpoint":
                     code = EXIT_INTERRUPTED if runner.interrupted else EXIT_STOPPED
-                    raise _Stopped(runner.reason, code, resumable=method == "seed")
+                    raise _Stopped(runner.reason, code, resumable=path.resume_state is not None)
                 runner.last_checkpoint = time.monotonic()
                 resume = {"path": path, "state": path.resume_state}
         except KeyboardInterrupt:
@@ -1199,11 +1237,29 @@ def _setup_info(sub, common):
     p.set_defaults(func=cmd_info)
 
 
-#: (name, setup(subparsers, common_parent)) of every subcommand.  A ``bench`` subcommand
-#: goes here: ``("bench", _setup_bench)`` with ``_setup_bench`` adding its parser and
-#: ``set_defaults(func=cmd_bench)``; ``cmd_bench(args)`` returns an exit code and raises
-#: CaseError / InputError for bad input (exit 2).
-SUBCOMMANDS = [("run", _setup_run), ("plot", _setup_plot), ("render", _setup_render), ("info", _setup_info)]
+def cmd_bench(args):
+    """``cfcontact bench``: the benchmark of :mod:`cfcontact.bench` (tables on stdout, JSON file)."""
+    from cfcontact import bench
+
+    return bench.run(args, " ".join(["cfcontact"] + sys.argv[1:]) if _PROGRAM["main"] else "cfcontact bench")
+
+
+def _setup_bench(sub, common):
+    p = sub.add_parser("bench", parents=[common], help="benchmark: seed vs exact on the main demo, exact method "
+                                                       "on refined meshes",
+                       description="Part A: seed vs exact method on the main demo (demos/main.py). Part B: the "
+                                   "exact method on refined two-block meshes (time split, peak memory). Prints "
+                                   "both tables and writes <output>/bench.json. See docs/bench.md.")
+    from cfcontact.bench import add_arguments
+
+    add_arguments(p)
+    p.set_defaults(func=cmd_bench)
+
+
+#: (name, setup(subparsers, common_parent)) of every subcommand.  A subcommand's
+#: ``cmd_*(args)`` returns an exit code and raises CaseError / InputError for bad input (exit 2).
+SUBCOMMANDS = [("run", _setup_run), ("plot", _setup_plot), ("render", _setup_render), ("info", _setup_info),
+               ("bench", _setup_bench)]
 
 
 def build_parser():

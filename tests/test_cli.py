@@ -181,6 +181,12 @@ BAD = [
     ("inclined without angle", '[geometry]\nkind = "inclined"\n', ["angle"]),
     ("bad TOML", '[geometry\nkind = "two_blocks"\n', ["TOML"]),
     ("component range", SMALL + 'component = ["lam_n", 99]\n', ["component", "99"]),
+    ("material missing body", '[geometry]\nkind = "two_blocks"\n[material]\nE = {body1 = 2.1e11}\n',
+     ["[material] E", "body2"]),
+    ("material unknown body", '[geometry]\nkind = "two_blocks"\n[material]\nnu = {body1 = 0.3, body3 = 0.3}\n',
+     ["[material] nu", "body3", "body2=2"]),
+    ("material bad value", '[geometry]\nkind = "two_blocks"\n[material]\nnu = {body1 = 0.3, body2 = 0.7}\n',
+     ["nu.body2", "0.7", "(-1, 0.5)"]),
     ("unclamped body", '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[loads]\nclamp = ["left1"]\n',
      ["body 2", "Dirichlet"]),
 ]
@@ -352,3 +358,140 @@ def test_failure_removes_partial_folder(tmp_path, monkeypatch, capsys):
     assert cli.main(["run", case]) == 1
     assert "boom" in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == ["case.toml"]
+
+
+# ------------------------------------------------------------------ stop and resume, method exact
+# Two blocks with the loads of demos/main.py (triangles, so that friction makes the solution
+# non-unique without a second block height): 20 transitions, 2 folds, multiplicity 3, ~1 s.
+EXACT = """
+title = "exact, folds"
+[geometry]
+kind = "two_blocks"
+nx = 12
+ny = 4
+cell = "triangle"
+[contact]
+friction = 30.0
+[loads.f1]
+top1 = [-5.734e7, 3.658e6]
+right1 = [3.910e7, -8.724e7]
+bottom2 = [1.877e8, -1.500e6]
+[loads.f2]
+top1 = [1.0e8, 0.0]
+right2 = [-5.807e7, 1.510e3]
+bottom2 = [-1.045e8, 1.450e8]
+[path]
+method = "exact"
+[output]
+plot = false
+render_panel = false
+"""
+
+
+@pytest.fixture(scope="module")
+def exact_run(tmp_path_factory):
+    """An uninterrupted exact run of EXACT: (case file, output folder)."""
+    d = tmp_path_factory.mktemp("exact")
+    case = _write(d, EXACT)
+    assert cli.main(["run", case, "-q"]) == 0
+    out = str(d / "case_out")
+    ref = SolutionPath.load(os.path.join(out, "path"))
+    assert ref.method == "exact" and ref.status == "completed" and len(ref.folds) >= 2
+    assert ref.max_multiplicity()[0] >= 3
+    return case, out
+
+
+def _same_exact_result(out, ref_out):
+    """The resumed run's output equals the uninterrupted one's: transitions (alpha to 1e-12, kind,
+    nodes, changes), folds, branches (sets, orientation), multiplicity, events.
+
+    Not bit for bit: the resumed process factorizes afresh what the uninterrupted one took from
+    its solver's cache (J(Z) of an equivalent Z), which changes the last bits."""
+    a, b = SolutionPath.load(os.path.join(out, "path")), SolutionPath.load(os.path.join(ref_out, "path"))
+    assert a.status == b.status == "completed"
+    assert [(t.kind, t.node, t.set, t.from_branch, t.to_branch, t.changes) for t in a.transitions] == \
+        [(t.kind, t.node, t.set, t.from_branch, t.to_branch, t.changes) for t in b.transitions]
+    np.testing.assert_allclose([t.alpha for t in a.transitions], [t.alpha for t in b.transitions], rtol=0, atol=1e-12)
+    np.testing.assert_allclose([t.alpha for t in a.folds], [t.alpha for t in b.folds], rtol=0, atol=1e-12)
+    assert [(br.sets.states(), br.orientation, br.parent, br.origin, br.points) for br in a.branches] == \
+        [(br.sets.states(), br.orientation, br.parent, br.origin, br.points) for br in b.branches]
+    np.testing.assert_allclose(a.alphas, b.alphas, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a.point_branch, b.point_branch)
+    np.testing.assert_allclose(a.ys, b.ys, rtol=0, atol=1e-12 * np.abs(b.ys).max())
+    assert [(e.kind, e.branch) for e in a.events] == [(e.kind, e.branch) for e in b.events]
+    assert a.max_multiplicity()[0] == b.max_multiplicity()[0]
+    sa, sb = (json.load(open(os.path.join(d, "summary.json"))) for d in (out, ref_out))
+    assert sa["max_multiplicity"] == sb["max_multiplicity"]
+    assert [m["solutions"] for m in sa["multiplicity"]] == [m["solutions"] for m in sb["multiplicity"]]
+    np.testing.assert_allclose([(m["alpha_lo"], m["alpha_hi"]) for m in sa["multiplicity"]],
+                               [(m["alpha_lo"], m["alpha_hi"]) for m in sb["multiplicity"]], rtol=0, atol=1e-12)
+
+
+EXACT_STOPS = [(["--stop-after-folds", "1"], 3), (["--stop-after-transitions", "5"], 3),
+               (["--stop-at-alpha", "0.3"], 3), (["--time-limit", "1e-6"], 3)]
+
+
+@pytest.mark.parametrize("stop_args,code", EXACT_STOPS, ids=[s[0][0] for s in EXACT_STOPS])
+def test_exact_stop_and_resume(tmp_path, exact_run, stop_args, code):
+    ref = SolutionPath.load(os.path.join(exact_run[1], "path"))
+    case = _write(tmp_path, EXACT)
+    out = tmp_path / "case_out"
+    assert cli.main(["run", case, "-q", *stop_args]) == code
+    assert not out.exists()
+    ck = tmp_path / "case_out.partial" / "checkpoint"
+    state = json.loads((ck / "state.json").read_text())
+    assert state["method"] == "exact" and state["resumable"]
+    rs = state["resume_state"]
+    partial = SolutionPath.load(str(ck / "path"))
+    assert partial.status == "stopped by callback" and len(partial.transitions) < len(ref.transitions)
+    b = partial.branches[rs["branch"]]
+    assert rs["orientation"] == b.orientation and rs["alpha"] == b.alpha_enter == partial.alphas[-1]
+    assert rs["states"] == b.sets.states()
+    if stop_args[0] == "--stop-after-folds":
+        assert len(partial.folds) == 1 and partial.transitions[-1].kind == "fold"  # exactly one fold
+    elif stop_args[0] == "--stop-after-transitions":
+        assert len(partial.transitions) == 5
+    elif stop_args[0] == "--stop-at-alpha":  # the exit and the next entry point share their alpha
+        assert partial.alphas[-1] >= 0.3 and [a for a in partial.alphas if a != partial.alphas[-1]][-1] < 0.3
+    else:
+        assert len(partial.alphas) == 1  # stopped at the start point
+    assert cli.main(["run", case, "-q"]) == 2  # without --resume: refused, checkpoint kept
+    assert ck.exists()
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert not (tmp_path / "case_out.partial").exists()
+    _same_exact_result(str(out), exact_run[1])
+
+
+def test_exact_stop_twice_ctrl_c_and_resume(tmp_path, exact_run, monkeypatch):
+    """Ctrl-C, then a stop condition on the resumed run, then the rest: same result."""
+    on_point = cli._Runner.on_point
+
+    def interrupt_at_4(self, pt):
+        if pt.index == 4:
+            signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
+        return on_point(self, pt)
+
+    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_4)
+    case = _write(tmp_path, EXACT)
+    assert cli.main(["run", case, "-q"]) == 130
+    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    ck = tmp_path / "case_out.partial" / "checkpoint"
+    state = json.loads((ck / "state.json").read_text())
+    assert "Ctrl-C" in state["reason"] and state["resumable"]
+    assert len(SolutionPath.load(str(ck / "path")).alphas) == 5  # stopped at the next point
+    assert cli.main(["run", case, "-q", "--resume", "--stop-after-transitions", "12"]) == 3
+    assert len(SolutionPath.load(str(ck / "path")).transitions) == 12
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    _same_exact_result(str(tmp_path / "case_out"), exact_run[1])
+
+
+def test_exact_periodic_checkpoints_do_not_change_the_path(tmp_path, exact_run, monkeypatch):
+    saves = []
+    save = cli.save_checkpoint
+    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    case = _write(tmp_path, EXACT)
+    assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
+    ref = SolutionPath.load(os.path.join(exact_run[1], "path"))
+    assert len(saves) >= len(ref.transitions) and set(saves) == {"checkpoint"}
+    _same_exact_result(str(tmp_path / "case_out"), exact_run[1])
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
