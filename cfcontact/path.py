@@ -640,12 +640,18 @@ def _json_default(o):
 
 # ====================================================================== tracing
 def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, method: str = "seed",
-               y0=None, options: Optional[PathOptions] = None, solver=None, resume=None, **kwargs) -> SolutionPath:
+               y0=None, options: Optional[PathOptions] = None, solver=None, resume=None, backend: str = "auto",
+               **kwargs) -> SolutionPath:
     """Follow the solution path of (4) along f(alpha) from alpha_start towards alpha_end.
 
     Parameters
     ----------
     method : "seed" (the seed's Section 4) or "exact" (exact piecewise-affine continuation)
+    solver : a DirNeu backend object (overrides ``backend``)
+    backend : "full" (PETSc :class:`~cfcontact.ssnm.DirNeuSolver`: one factorization of J(Z) per
+        branch), "condensed" (:class:`~cfcontact.condensed.CondensedSolver`: K factored once,
+        dense systems in the contact unknowns) or "auto" (default: condensed for the exact method
+        when m <= CONDENSED_MAX_M, full otherwise; the seed method uses full, as the seed does)
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``)
     resume : continue a run stopped by its callback instead of starting anew: a dict
@@ -671,11 +677,31 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     if resume is not None and isinstance(resume, dict) and isinstance(resume.get("path"), SolutionPath) \
             and resume["path"].method != method:
         raise InputError(f"cannot resume a {resume['path'].method!r} path with method {method!r}")
+    solver = solver if solver is not None else select_solver(system, method, backend)
     if method == "exact":
         from cfcontact.exact import trace_exact
 
         return trace_exact(system, alpha_start, alpha_end, y0=y0, options=opts, solver=solver, resume=resume)
     return _trace_seed(system, alpha_start, alpha_end, y0, opts, solver, resume)
+
+
+#: ``backend="auto"`` uses the condensed solver for the exact method up to this many contact
+#: nodes (its dense matrices are (2m)^2: 128 MB at m = 2000).
+CONDENSED_MAX_M = 2000
+BACKENDS = ("auto", "full", "condensed")
+
+
+def select_solver(system: ContactSystem, method: str = "exact", backend: str = "auto"):
+    """The system's cached DirNeu backend for ``method`` (see :func:`trace_path`'s ``backend``)."""
+    if backend not in BACKENDS:
+        raise InputError(f"unknown backend {backend!r}; valid: {', '.join(map(repr, BACKENDS))}")
+    if backend == "auto":
+        backend = "condensed" if method == "exact" and system.m <= CONDENSED_MAX_M else "full"
+    if backend == "condensed":
+        from cfcontact.condensed import get_condensed_solver
+
+        return get_condensed_solver(system)
+    return get_solver(system)
 
 
 def _alpha_range(opts, alpha_start, alpha_end):

@@ -255,12 +255,26 @@ def test_condensed_matches_full_backend(store):
         assert np.allclose(cond.K_times(u), full.K_times(u))
 
 
+def test_backend_selection():
+    from cfcontact.path import select_solver
+
+    system = random_system(3, 0, friction=1.0)
+    assert isinstance(select_solver(system, "exact"), CondensedSolver)  # auto: exact -> condensed
+    assert isinstance(select_solver(system, "seed"), DirNeuSolver)  # auto: seed -> J(Z), as the seed
+    assert isinstance(select_solver(system, "seed", "condensed"), CondensedSolver)
+    assert isinstance(select_solver(system, "exact", "full"), DirNeuSolver)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.lazy or not path.branches  # the condensed backend stores multipliers only
+    with pytest.raises(cfcontact.InputError, match="unknown backend 'dense'; valid: 'auto', 'full', 'condensed'"):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="dense")
+
+
 def test_exact_with_condensed_backend_one_factorization():
     for seed in range(3):
         system = random_system(5, seed, friction=1.0)
         solver = CondensedSolver(system)
         pc = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
-        pf = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        pf = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="full")
         assert pc.status == pf.status == "completed"
         assert solver.stats.factorizations == 1 and pc.stats["factorizations"] == 0
         assert branch_keys(pc, 1.0) == branch_keys(pf, 1.0)
