@@ -655,6 +655,7 @@ def assemble_contact_system(
     }
     if info:
         meta.update(info)
+    geometry.material = {"E": meta["E"], "nu": meta["nu"], "plane": meta["plane"]}  # saved with a path
     return ContactSystem(K=K, N=N, T=T, f1=loads[0], f2=loads[1], friction=friction, rho=rho,
                          geometry=geometry, info=meta)
 

@@ -8,7 +8,7 @@ Subcommands
     ``path/`` (:meth:`SolutionPath.save`), ``summary.json``, ``case.toml`` (a copy),
     ``path.png`` and ``multiplicity.png`` (+ ``.pdf`` if asked), ``panel.png`` (solutions at
     the alpha of largest multiplicity) and ``animation.gif`` if asked.
-``plot SAVED``, ``render SAVED``, ``info SAVED``
+``plot SAVED``, ``render SAVED``, ``info SAVED``, ``export SAVED -o FILE.xdmf``
     Work on a saved path: ``SAVED`` is a ``path/`` folder, a run's output folder, or a
     stopped run's ``<out>.partial/`` folder (its checkpoint).
 ``bench``
@@ -85,6 +85,8 @@ Case file (TOML)
     animation_frames = 60
     # magnification = 50.0
     # window_size = [1200, 600]
+    # stress = false             # colour panel.png by the von Mises stress
+    # xdmf = false               # solutions.xdmf for ParaView (the panel's solutions)
 
 Every section and key is optional except ``[geometry] kind`` (and ``file`` for "msh",
 ``angle`` for "inclined", ``[loads] clamp`` / ``[loads.f1]`` / ``[loads.f2]`` for "msh").
@@ -156,7 +158,7 @@ SCHEMA = {
     "contact": {"friction": ("friction", 0.0), "rho": ("float", None)},
     "loads": {"clamp": ("tags", None), "f1": ("tractions", None), "f2": ("tractions", None),
               "body_force1": ("body_force", None), "body_force2": ("body_force", None)},
-    "path": {"method": ("str", "seed"), "alpha_start": ("float", 0.0), "alpha_end": ("float", 1.0),
+    "path": {"method": ("str", "seed"), "backend": ("str", "auto"), "alpha_start": ("float", 0.0), "alpha_end": ("float", 1.0),
              "alpha_min": ("float", None), "alpha_max": ("float", None), "h_min": ("float", None),
              "h_max": ("float", None), "c_p": ("float", None), "c_s": ("float", None), "h0": ("float", None),
              "max_steps": ("int", None), "max_transitions": ("int", None), "tol": ("float", None),
@@ -164,7 +166,8 @@ SCHEMA = {
     "output": {"plot": ("bool", True), "plot_formats": ("formats", ["png"]), "component": ("component", None),
                "zoom": ("zoom", None), "render_panel": ("bool", True), "render_animation": ("bool", False),
                "animation_format": ("str", "gif"), "animation_frames": ("int", 60),
-               "magnification": ("float", None), "window_size": ("window", None)},
+               "magnification": ("float", None), "window_size": ("window", None), "stress": ("bool", False),
+               "xdmf": ("bool", False)},
 }
 TOP_LEVEL = ("title", *SCHEMA)
 PHYSICS_SECTIONS = ("geometry", "material", "contact", "loads", "path")
@@ -434,6 +437,10 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     if path["method"] not in METHODS:
         raise CaseError(f"[path] method: unknown method {path['method']!r}; valid: "
                         f"{', '.join(map(repr, METHODS))}")
+    from cfcontact.path import BACKENDS
+
+    if path["backend"] not in BACKENDS:
+        raise CaseError(f"[path] backend: unknown backend {path['backend']!r}; valid: {', '.join(map(repr, BACKENDS))}")
     a0, a1 = path["alpha_start"], path["alpha_end"]
     if a0 == a1:
         raise CaseError(f"[path] alpha_start = alpha_end = {a0}: the alpha range is empty")
@@ -902,29 +909,32 @@ def write_outputs(path, case, outdir, timings, args, system=None):
                 save_figure(fig, os.path.join(outdir, f"multiplicity.{fmt}"))
                 files.append(f"multiplicity.{fmt}")
         timings["plot"] = time.perf_counter() - t
-    if (out["render_panel"] or out["render_animation"]) and path.geometry is None:
-        _warn(args, "the path has no geometry; no renders")
-    elif out["render_panel"] or out["render_animation"]:
+    if (out["render_panel"] or out["render_animation"] or out["xdmf"]) and path.geometry is None:
+        _warn(args, "the path has no geometry; no renders" + (" and no XDMF file" if out["xdmf"] else ""))
+    elif out["render_panel"] or out["render_animation"] or out["xdmf"]:
         t = time.perf_counter()
-        from cfcontact import render
-
         ws = out.get("window_size")
         mag = out.get("magnification")
-        if out["render_panel"]:
-            k, a = path.max_multiplicity()
-            sols = path.solutions_at(a) if k else []
-            if not sols and len(path.alphas):
-                from cfcontact.ssnm import Solution
+        sols = _panel_solutions(path) if out["render_panel"] or out["xdmf"] else []
+        if out["xdmf"] and sols:
+            from cfcontact import fields
 
-                y = path.ys[-1]
-                n, m = path.n, path.m
-                sols = [Solution(y[:n], y[n:n + m], y[n + m:], float(path.alphas[-1]),
-                                 path.branches[path.point_branch[-1]].sets, 0)]
-            if sols:
-                render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
-                                    window_size=None if ws is None else tuple(ws))
-                files.append("panel.png")
+            fields.write_xdmf(os.path.join(outdir, "solutions.xdmf"), path.geometry, sols)
+            files.append("solutions.xdmf")
+        if out["render_panel"] and sols:
+            from cfcontact import render
+
+            stresses = None
+            if out["stress"]:
+                from cfcontact import fields
+
+                stresses = [fields.von_mises(path.geometry, s.u) for s in sols]
+            render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
+                                window_size=None if ws is None else tuple(ws), stresses=stresses)
+            files.append("panel.png")
         if out["render_animation"] and len(path.alphas):
+            from cfcontact import render
+
             fmt = out["animation_format"]
             name = "animation_frames" if fmt == "frames" else f"animation.{fmt}"
             res = render.render_animation(path, os.path.join(outdir, name), frames=out["animation_frames"],
@@ -940,6 +950,20 @@ def write_outputs(path, case, outdir, timings, args, system=None):
         json.dump(_jsonable(summary), fh, indent=1)
     files.append("summary.json")
     return files
+
+
+def _panel_solutions(path):
+    """The solutions at the alpha of largest multiplicity (else the last path point)."""
+    k, a = path.max_multiplicity()
+    sols = path.solutions_at(a) if k else []
+    if not sols and len(path.alphas):
+        from cfcontact.ssnm import Solution
+
+        y = path.ys[-1]
+        n, m = path.n, path.m
+        sols = [Solution(y[:n], y[n:n + m], y[n + m:], float(path.alphas[-1]),
+                         path.branches[path.point_branch[-1]].sets, 0)]
+    return sols
 
 
 def _is_run_folder(d):
@@ -1061,13 +1085,12 @@ def cmd_run(args):
 
 def _trace(system, case, args, partial, resume, progress, t_start, timings):
     """Trace the path in chunks (periodic checkpoints); raises _Stopped when a stop condition fires."""
-    from cfcontact.path import PathOptions, trace_path
-    from cfcontact.ssnm import get_solver
+    from cfcontact.path import PathOptions, select_solver, trace_path
 
     p = case["path"]
     method = p["method"]
     opts = {k: v for k, v in p.items() if k in PathOptions.__dataclass_fields__}
-    solver = get_solver(system)
+    solver = select_solver(system, method, p.get("backend", "auto"))
     runner = _Runner(args, solver, progress, t_start, method, resume["path"] if resume else None)
 
     t = time.perf_counter()
@@ -1155,14 +1178,61 @@ def cmd_render(args):
     out = args.output or "render.png"
     if os.path.splitext(out)[1].lower() != ".png":
         raise CaseError(f"-o: renders are PNG files, got {out!r}")
+    stresses = None
+    if args.stress:
+        from cfcontact import fields
+
+        material = _saved_material(src, path)
+        stresses = [fields.von_mises(path.geometry, s.u, material) for s in sols]
     if len(sols) > 1 or args.panel:
-        render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws)
+        render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws,
+                            stresses=stresses)
     else:
         render.render_solution(path.geometry, sols[0], out, magnification=args.magnification,
-                               window_size=ws or (1200, 800))
+                               window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0])
     _say(args, f"wrote {out} ({len(sols)} solution(s) at alpha = {alpha:.10g})")
     if args.animation:
         _render_animation(args, path, ws)
+    return EXIT_OK
+
+
+def _saved_material(src, path):
+    """The material of a saved path: stored with its geometry, else the [material] of the run's case.toml
+    (paths saved before the material was stored); CaseError if neither is there."""
+    material = getattr(path.geometry, "material", None)
+    if material is not None:
+        return material
+    folder = os.path.abspath(src)
+    # <out>/path -> <out>/case.toml; <out>.partial/checkpoint/path -> <out>.partial/case.toml
+    for cand in (os.path.dirname(folder), os.path.dirname(os.path.dirname(folder))):
+        fn = os.path.join(cand, "case.toml")
+        if os.path.isfile(fn):
+            try:
+                with open(fn, "rb") as fh:
+                    mat = tomllib.loads(fh.read().decode("utf-8")).get("material", {})
+            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+                continue
+            return {"E": mat.get("E", 2.1e11), "nu": mat.get("nu", 0.3), "plane": mat.get("plane", "strain")}
+    raise CaseError(f"{src!r} stores no material (saved by an older cfcontact) and no case.toml is next to it; "
+                    f"re-run the case to get stresses")
+
+
+def cmd_export(args):
+    src, path = _load_saved(args.saved)
+    if path.geometry is None:
+        raise CaseError(f"{src!r} has no geometry (a lumped model): nothing to export")
+    out = args.output or "solutions.xdmf"
+    if os.path.splitext(out)[1].lower() not in (".xdmf", ".xmf"):
+        raise CaseError(f"-o: XDMF files end in .xdmf or .xmf, got {out!r}")
+    from cfcontact import fields
+
+    try:
+        material = _saved_material(src, path)
+    except CaseError:
+        material = None
+        _warn(args, f"{src!r} stores no material: no von_mises attribute")
+    fn, what = fields.export_path(path, out, alpha=args.alpha, points=args.points, material=material)
+    _say(args, f"wrote {fn} ({what})")
     return EXIT_OK
 
 
@@ -1226,8 +1296,23 @@ def _setup_render(sub, common):
     p.add_argument("--frames", type=int, default=60, help="animation frames (default 60)")
     p.add_argument("--magnification", type=float, help="displacement scale (default: automatic)")
     p.add_argument("--window-size", nargs=2, type=int, metavar=("W", "H"), help="picture size in pixels")
+    p.add_argument("--stress", action="store_true", help="colour the cells by the von Mises stress")
     p.add_argument("-o", "--output", metavar="FILE.png", help="picture file (default render.png)")
     p.set_defaults(func=cmd_render)
+
+
+def _setup_export(sub, common):
+    p = sub.add_parser("export", parents=[common], help="write solutions of a saved path as XDMF (ParaView)",
+                       description="Write the solutions at one alpha (default: the alpha of largest multiplicity) "
+                                   "or every stored path point as an XDMF 3 file with inline XML data: "
+                                   "displacement, contact_state, lam_n, lam_t, body, von_mises.")
+    p.add_argument("saved", metavar="SAVED_PATH_DIR")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--alpha", type=float, metavar="A",
+                   help="all solutions at alpha A (default: the alpha of largest multiplicity)")
+    g.add_argument("--points", action="store_true", help="every stored path point, in path order (time series)")
+    p.add_argument("-o", "--output", metavar="FILE.xdmf", help="XDMF file (default solutions.xdmf)")
+    p.set_defaults(func=cmd_export)
 
 
 def _setup_info(sub, common):
@@ -1259,7 +1344,7 @@ def _setup_bench(sub, common):
 #: (name, setup(subparsers, common_parent)) of every subcommand.  A subcommand's
 #: ``cmd_*(args)`` returns an exit code and raises CaseError / InputError for bad input (exit 2).
 SUBCOMMANDS = [("run", _setup_run), ("plot", _setup_plot), ("render", _setup_render), ("info", _setup_info),
-               ("bench", _setup_bench)]
+               ("export", _setup_export), ("bench", _setup_bench)]
 
 
 def build_parser():

@@ -454,7 +454,7 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
     magnification : displacement scale; default :func:`auto_magnification` (largest
         displacement = 10 % of the model size)
     window_size : (width, height) in pixels of the PNG
-    stress : optional per-cell values (e.g. von Mises stress computed by the assembly layer);
+    stress : optional per-cell values, e.g. ``cfcontact.fields.von_mises(geometry, solution.u)``;
         cells are then coloured by it with a scalar bar.  ``show_stress=True`` without ``stress``
         is an error (this module does not compute stresses).
     title : text at the top; the lower-left corner shows α and the magnification.
@@ -462,7 +462,7 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
     filename = _prepare_output(filename)
     u = _check_solution(geometry, solution)
     if show_stress and stress is None:
-        raise InputError("show_stress=True needs stress= (one value per cell, computed by the assembly layer)")
+        raise InputError("show_stress=True needs stress= (one value per cell, e.g. cfcontact.fields.von_mises)")
     mag = auto_magnification(geometry, [u]) if magnification is None else float(magnification)
     plotter = _new_plotter(window_size)
     try:

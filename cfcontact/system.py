@@ -16,6 +16,7 @@ or from plain matrices (:meth:`ContactSystem.from_arrays`) for lumped models.
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -46,6 +47,11 @@ class ContactGeometry:
         Node of body 1 and node of body 2 (-1 for a rigid foundation) of each contact pair.
     contact_points, normals, tangents : (m, 2) float arrays
         Coordinates, unit outer normal of body 1 and unit tangent t = (-n_y, n_x).
+    material : dict or None
+        ``{"E": ..., "nu": ..., "plane": "strain" | "stress"}`` of the model (E and nu numbers, or
+        dicts ``{"body1=1": value, ...}`` with one value per body), as in ``ContactSystem.info``;
+        set by the assembly layer and saved with a path, so stresses
+        (:func:`cfcontact.fields.von_mises`) can be computed from a saved path.  None: unknown.
     """
 
     points: np.ndarray
@@ -57,6 +63,13 @@ class ContactGeometry:
     contact_points: np.ndarray
     normals: np.ndarray
     tangents: np.ndarray
+    material: Optional[dict] = None
+
+    def __post_init__(self):
+        # to_dict() stores the material as a JSON string (a NumPy 0-d str array in an .npz)
+        if isinstance(self.material, (str, np.ndarray)):
+            text = str(self.material)
+            self.material = json.loads(text) if text else None
 
     def displacement_field(self, u: np.ndarray) -> np.ndarray:
         """Nodal displacements (P, 2) from a free-DOF vector u (clamped nodes get 0)."""
@@ -65,11 +78,17 @@ class ContactGeometry:
         return U
 
     def to_dict(self) -> dict:
-        return {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        """Plain NumPy arrays (for an .npz; no pickling): the material as a JSON string, if known."""
+        out = {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self) if f.name != "material"}
+        if self.material is not None:
+            out["material"] = np.asarray(json.dumps(self.material))
+        return out
 
     @classmethod
     def from_dict(cls, d) -> "ContactGeometry":
-        return cls(**{f.name: np.asarray(d[f.name]) for f in dataclasses.fields(cls)})
+        """Inverse of :meth:`to_dict`; ``material`` is optional (paths saved before it was stored)."""
+        kw = {f.name: np.asarray(d[f.name]) for f in dataclasses.fields(cls) if f.name != "material"}
+        return cls(**kw, material=d["material"] if "material" in d else None)
 
 
 def default_rho(K: sp.spmatrix, N: sp.spmatrix, T: sp.spmatrix) -> float:
