@@ -11,7 +11,8 @@ DirNeu(Z, f) (method.md (9)) is then the dense system M(Z) lam = r(Z, w) with, p
 
 followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP,
 MUMPS when available; works under MPI), forms K^-1 B^T with multi-right-hand-side solves
-(``MatMatSolve`` on dense blocks of columns) only to get S, caches w for the loads seen
+(``MatMatSolve``: on one rank with MUMPS B^T as one sparse right-hand side, else dense blocks
+of columns) only to get S, caches w for the loads seen
 (f1, f2), and LU-factors the reduced system (free multipliers only, see ``_factor``) per
 inactive-set combination (dense, cached).  :meth:`CondensedSolver.displacements` forms u for
 many (alpha, lam) at once (one multi-RHS solve per block): the exact method stores only the
@@ -51,6 +52,9 @@ SCHUR_MIN_ENTRIES = 10_000_000
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
+# per-node state codes (ssnm.STATE_NAMES order) and lam_t / (F lam_n) of a slipping node by code
+_OPEN, _STICK, _SLIP_P, _SLIP_M = 0, 1, 2, 3
+_SLIP_SIGN = np.array([0.0, 0.0, 1.0, -1.0])
 _LIB = []
 
 
@@ -275,6 +279,39 @@ class CondensedSolver:
         """Local rows of K^-1 B^T[:, cols] (nloc x len(cols))."""
         return self._ksolve_dense(np.asfortranarray(self.B_local[cols, :].T.toarray()))
 
+    def _condense_sparse(self) -> Optional[np.ndarray]:
+        """B K^-1 B^T (before symmetrization) from one multi-RHS solve with B^T as a sparse
+        right-hand side (one rank): PETSc passes it to MUMPS as such (ICNTL(20)), which skips
+        the zeros in the forward substitution -- the same numbers as with dense columns (checked
+        bitwise on the demo), in about 60% of the time.  None when the factorization does not
+        take sparse right-hand sides (not MUMPS, other PETSc builds): then S is formed from
+        dense columns."""
+        if self.m == 0 or self.size > 1 or self._schur_dofs is not None:
+            return None
+        B = self.B_local.sorted_indices()
+        objs = []
+        try:
+            Bt = PETSc.Mat().createAIJ(size=B.shape, csr=(B.indptr.astype(PETSc.IntType),
+                                                          B.indices.astype(PETSc.IntType), B.data),
+                                       comm=PETSc.COMM_SELF)
+            objs.append(Bt)
+            Bv = PETSc.Mat().createTranspose(Bt)  # B^T, applied by MUMPS as a sparse right-hand side
+            objs.append(Bv)
+            Xm = PETSc.Mat().createDense((self.n, B.shape[0]), comm=PETSc.COMM_SELF)
+            objs.append(Xm)
+            Xm.setUp()
+            Xm.assemble()
+            self.ksp.getPC().getFactorMatrix().matSolve(Bv, Xm)
+            S = self.B_local @ Xm.getDenseArray()  # K^-1 B^T itself is not kept
+        except PETSc.Error as exc:
+            log.info("sparse right-hand sides unavailable (PETSc error %s); S from dense columns", exc.ierr)
+            return None
+        finally:
+            for obj in objs:
+                obj.destroy()
+        self.stats.linear_solves += B.shape[0]
+        return S
+
     def _allreduce(self, a: np.ndarray) -> np.ndarray:
         if self.size == 1:
             return a
@@ -294,11 +331,13 @@ class CondensedSolver:
                 from mpi4py import MPI
 
                 block = self.comm.allreduce(block, op=MPI.MIN)
-        S = np.zeros((m2, m2))
-        for c0 in range(0, m2, block):
-            cols = np.arange(c0, min(m2, c0 + block))
-            S[:, cols] = self.B_local @ self._kinv_columns(cols)
-        S = self._allreduce(np.ascontiguousarray(S))
+        S = self._condense_sparse() if block >= m2 else None
+        if S is None:
+            S = np.zeros((m2, m2))
+            for c0 in range(0, m2, block):
+                cols = np.arange(c0, min(m2, c0 + block))
+                S[:, cols] = self.B_local @ self._kinv_columns(cols)
+            S = self._allreduce(np.ascontiguousarray(S))
         return 0.5 * (S + S.T)
 
     # ---------------------------------------------------------------- loads
@@ -369,16 +408,35 @@ class CondensedSolver:
         if hit is not None:
             self._lu.move_to_end(key)
             return hit
-        return self._factor_reduced(key, Z.nu, Z.tp, Z.tm)
+        return self._factor_reduced(key, *self._reduction(Z.nu, Z.tp, Z.tm), lambda: repr(Z))
 
-    def _factor_reduced(self, key, nu, tp, tm):
-        m = self.m
+    def _reduction(self, nu, tp, tm):
+        """(rows, closed, slip, coef) of the reduced system of the sets (nu, tp, tm), see :meth:`_factor`."""
         act_n = ~nu
         it = tp | tm
         closed = act_n.nonzero()[0]
-        rows = np.concatenate([closed, m + (~it).nonzero()[0]])  # = the free unknowns
+        rows = np.concatenate([closed, self.m + (~it).nonzero()[0]])  # = the free unknowns
         slip = (it & act_n).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
         coef = self.F[slip] * (tp[slip].astype(float) - tm[slip].astype(float))
+        return rows, closed, slip, coef
+
+    def _factor_codes(self, key, codes):
+        """:meth:`_factor` for the sets given by canonical per-node state codes (0 open, 1 stick,
+        2 slip+, 3 slip-, as :func:`cfcontact.exact.canonical_codes`; an open node is
+        tangentially free), cached under the caller's ``key``.  The same reduced system as
+        :meth:`_factor` for the equivalent InactiveSets, with fewer array operations."""
+        closed = (codes != _OPEN).nonzero()[0]
+        rows = np.concatenate([closed, self.m + (codes == _STICK).nonzero()[0]])  # = the free unknowns
+        slip = (codes >= _SLIP_P).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
+        coef = self.F[slip] * _SLIP_SIGN[codes[slip]]
+        return self._factor_reduced(key, rows, closed, slip, coef, lambda: repr(
+            InactiveSets(codes == _OPEN, (codes == _OPEN) | (codes == _SLIP_P), codes == _SLIP_M)))
+
+    def _factor_reduced(self, key, rows, closed, slip, coef, describe):
+        """LU of the reduced system with unknowns lam[rows] (``closed``: the closed nodes, the
+        first entries of ``rows``; ``slip``: slipping nodes with lam_t = coef lam_n), cached as
+        (lu, piv, rows, slip, coef).  ``describe()`` names the sets in the error message."""
+        m = self.m
         Sr = self.S.take(rows, axis=0)
         M = Sr.take(rows, axis=1)
         if slip.size:
@@ -387,9 +445,10 @@ class CondensedSolver:
         if M.size:
             lu, piv, info = _getrf(M, overwrite_a=True)
             d = np.abs(lu.diagonal())
-            if info < 0 or not np.isfinite(d).all() or d.min() <= 1e-14 * max(d.max(), 1e-300):
-                raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for "
-                                          f"{InactiveSets(nu, tp, tm)!r}")
+            dmax = d.max()
+            # "not dmax < inf" also catches NaN (every comparison with NaN is false)
+            if info < 0 or not dmax < np.inf or d.min() <= 1e-14 * max(dmax, 1e-300):
+                raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for {describe()}")
         else:
             lu, piv = M, np.zeros(0, dtype=np.int32)
         self.stats.dense_factorizations += 1
@@ -405,9 +464,11 @@ class CondensedSolver:
             return np.zeros(0)
         return self._solve_reduced(self._factor(Z), w)
 
-    def multipliers_many(self, Z: InactiveSets, W: np.ndarray, key: Optional[bytes] = None) -> np.ndarray:
+    def multipliers_many(self, Z: Optional[InactiveSets], W: np.ndarray, key: Optional[bytes] = None,
+                         codes: Optional[np.ndarray] = None) -> np.ndarray:
         """lam_j of DirNeu(Z, f_j) for the columns w_j = B K^-1 f_j of W (2m x k): one LU, one
-        k-column triangular solve.  ``key``: a caller's cache key standing for Z's canonical key."""
+        k-column triangular solve.  ``key``: a caller's cache key standing for Z's canonical key;
+        with it, Z may be given as its canonical state ``codes`` instead (see :meth:`_factor_codes`)."""
         if self.m == 0:
             return np.zeros((0, W.shape[1]))
         if key is None:
@@ -415,7 +476,10 @@ class CondensedSolver:
         else:
             entry = self._lu.get(key)
             if entry is None:
-                entry = self._factor_reduced(key, Z.nu, Z.tp, Z.tm)
+                if codes is not None:
+                    entry = self._factor_codes(key, np.asarray(codes))
+                else:
+                    entry = self._factor_reduced(key, *self._reduction(Z.nu, Z.tp, Z.tm), lambda: repr(Z))
             else:
                 self._lu.move_to_end(key)
         lu, piv, rows, slip, coef = entry
@@ -423,7 +487,8 @@ class CondensedSolver:
         lam = np.zeros((2 * self.m, W.shape[1]))
         if rows.size:
             lam[rows] = _getrs(lu, piv, W.take(rows, axis=0))[0]
-        lam[self.m + slip] = coef[:, None] * lam[slip]
+        if slip.size:
+            lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
 
     def indicators(self, lam: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -435,10 +500,10 @@ class CondensedSolver:
             Bu = w - self.S.take(nz, axis=0).T @ lam[nz]  # S is symmetric: rows are contiguous
         else:
             Bu = w - self.S @ lam
-        a = lam[:m] + rho * Bu[:m]
-        b = lam[m:] + rho * Bu[m:]
-        F = self.F if lam.ndim == 1 else self.F[:, None]
-        return np.concatenate([a, b - F * lam[:m], b + F * lam[:m]])
+        g = lam + rho * Bu  # (a; b) with a = lam_n + rho N u, b = lam_t + rho T u
+        F_lam_n = (self.F if lam.ndim == 1 else self.F[:, None]) * lam[:m]
+        b = g[m:]
+        return np.concatenate((g[:m], b - F_lam_n, b + F_lam_n))  # (a, bp, bm)
 
     def ssnm(self, f: np.ndarray, y0: np.ndarray, tol: float, max_iter: int, alpha: float):
         """SSNM (:func:`cfcontact.ssnm.ssnm`) in the multipliers: the sets come from the

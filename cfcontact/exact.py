@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 import time
 from typing import Optional
 
@@ -96,9 +97,13 @@ def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
     return codes.astype(np.int8)
 
 
+# membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
+_SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
+
+
 def sets_from_codes(codes) -> InactiveSets:
-    codes = np.asarray(codes)
-    return InactiveSets(codes == OPEN, (codes == OPEN) | (codes == SLIP_P), codes == SLIP_M)
+    table = _SETS_OF_CODE[np.asarray(codes)]  # m x 3
+    return InactiveSets(table[:, 0], table[:, 1], table[:, 2])
 
 
 # _CONS as a table: _CONS_SIGN[state, F == 0, indicator] = sign of that constraint (0: none)
@@ -111,10 +116,10 @@ for (_st, _f0), _cs in _CONS.items():
 def state_constraints(codes, F0) -> tuple:
     """(flat indicator index ind*m + node, sign, node) of every constraint of the states ``codes``
     (node by node, each node's constraints in the order of the indicators)."""
-    codes = np.asarray(codes, dtype=np.int64)
+    codes = np.asarray(codes)
     m = codes.size
-    table = _CONS_SIGN[codes, np.asarray(F0, dtype=np.int64)]  # m x 3
-    nodes, ind = np.nonzero(table)
+    table = _CONS_SIGN[codes, np.asarray(F0, dtype=np.intp)]  # m x 3
+    nodes, ind = table.nonzero()
     return ind * m + nodes, table[nodes, ind], nodes
 
 
@@ -126,17 +131,24 @@ class _Line:
     costs O(n m), so only branches the path takes pay it)."""
 
     def __init__(self, codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=None):
-        self.codes, self.sets = codes, sets
+        self.codes, self._sets = codes, sets  # sets: None = formed from codes when first needed
+        self.key = codes.tobytes()  # identity of the line (its canonical state codes, _Context.key)
         self.source = source  # backend forming u on demand (lazy branches of the path), or None
         self.lam1, self.lam2 = lam1, lam2
         self.g1, self.g2 = g1, g2
         self.c1, self.c2 = csgn * g1[cidx], csgn * g2[cidx]  # constraint values at alpha = 0 and 1
         self.slopes = self.c2 - self.c1
         self.cidx, self.cnode = cidx, cnode
-        self.gmax1 = float(np.abs(g1).max(initial=0.0))
-        self.gmax2 = float(np.abs(g2).max(initial=0.0))
+        self.gmax1 = float(np.abs(g1).max()) if g1.size else 0.0
+        self.gmax2 = float(np.abs(g2).max()) if g2.size else 0.0
         self._full = full
         self._Y = None
+
+    @property
+    def sets(self) -> InactiveSets:
+        if self._sets is None:
+            self._sets = sets_from_codes(self.codes)
+        return self._sets
 
     @property
     def Y1(self):
@@ -175,6 +187,7 @@ class _Context:
         self.lo, self.hi, self.rtol = lo, hi, rtol
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
+        self.F0_index = self.F0.astype(np.intp)  # second index of _CONS_SIGN
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
         self.visited: dict = {}
@@ -197,17 +210,18 @@ class _Context:
 
     def line(self, codes) -> _Line:
         codes = np.asarray(codes, dtype=np.int8)
-        k = self.key(codes)
-        if k in self.lines:
-            return self.lines[k]
-        sets = sets_from_codes(codes)
+        k = codes.tobytes()  # = self.key(codes)
+        ln = self.lines.get(k)
+        if ln is not None:
+            return ln
         system, solver, n = self.system, self.solver, self.system.n
-        cidx, csgn, cnode = state_constraints(codes, self.F0)
+        cidx, csgn, cnode = state_constraints(codes, self.F0_index)
         if hasattr(solver, "multipliers_many") and hasattr(solver, "indicators"):
-            # condensed backend: both loads with one LU and no u (formed on demand by the path)
+            # condensed backend: both loads with one LU and no u (formed on demand by the path);
+            # the sets are passed as their codes (InactiveSets formed only for branches taken)
             if self._W is None:
                 self.prepare_loads()
-            L = solver.multipliers_many(sets, self._W, key=b"exact:" + k)
+            L = solver.multipliers_many(None, self._W, key=b"exact:" + k, codes=codes)
             G = solver.indicators(L, self._W)
             lam1, lam2, g1, g2 = L[:, 0], L[:, 1], G[:, 0], G[:, 1]
 
@@ -215,9 +229,10 @@ class _Context:
                 U = solver.displacements(np.column_stack([lam1, lam2]), [0.0, 1.0])
                 return np.concatenate([U[:, 0], lam1]), np.concatenate([U[:, 1], lam2])
 
-            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=solver)
+            ln = _Line(codes, None, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=solver)
         elif hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
             # condensed backend: multipliers and indicators in O(m^2), u only when needed
+            sets = sets_from_codes(codes)
             w1, w2 = solver.load_data(self.f1), solver.load_data(self.f2)
             lam1, lam2 = solver.multipliers(sets, w1), solver.multipliers(sets, w2)
             g1, g2 = self._condensed_indicators(lam1, w1), self._condensed_indicators(lam2, w2)
@@ -229,6 +244,7 @@ class _Context:
             ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full,
                        source=solver if hasattr(solver, "displacements") else None)
         else:
+            sets = sets_from_codes(codes)
             Y1, Y2 = branch_endpoints(system, solver, sets)
             g1 = np.concatenate(indicators(system, Y1))
             g2 = np.concatenate(indicators(system, Y2))
@@ -243,58 +259,72 @@ class _Context:
 def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     """First alpha (from alpha0 in direction s) where a decreasing constraint of ln vanishes.
 
-    Returns (alpha_exit, vanishing constraint positions) or (None, None) when no constraint
-    vanishes before the end of the alpha range."""
+    Returns (alpha_exit, vanishing constraint positions: a sorted list) or (None, None) when no
+    constraint vanishes before the end of the alpha range."""
     sl = ln.slopes
     tol_s = ln.tol_s(ctx.rtol)
-    dec = (s * sl < -tol_s).nonzero()[0]
+    dec = ((sl < -tol_s) if s > 0 else (sl > tol_s)).nonzero()[0]  # s * slope < -tol_s
     if not dec.size:
         return None, None
     c1, c2 = ln.c1[dec], ln.c2[dec]
     roots = c1 / (c1 - c2)
-    dist = np.maximum(s * (roots - alpha0), 0.0)
-    j = int(np.argmin(dist))
-    a_star = alpha0 + s * dist[j] if dist[j] == 0.0 else float(roots[j])
+    dist = np.maximum((roots - alpha0) if s > 0 else (alpha0 - roots), 0.0)  # s * (roots - alpha0), >= 0
+    j = int(dist.argmin())
+    dj = float(dist[j])
+    a_star = alpha0 + s * dj if dj == 0.0 else float(roots[j])
     bound = ctx.hi if s > 0 else ctx.lo
     if s * (a_star - bound) >= 0:
         return None, None
     vals = ln.values(a_star)
-    vanish = (np.abs(vals) <= ln.tol_v(a_star, ctx.rtol)).nonzero()[0]
-    first = dec[j]
+    vanish = (np.abs(vals) <= ln.tol_v(a_star, ctx.rtol)).nonzero()[0].tolist()
+    first = int(dec[j])
     if first not in vanish:
-        vanish = np.union1d(vanish, [first])
+        vanish = sorted(vanish + [first])
     return float(a_star), vanish
 
 
 def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
     """States of ``node`` whose (closed) constraints hold at the indicator values g_star (3m)."""
     m = ctx.m
+    f0 = bool(ctx.F0[node])
+    g = (float(g_star[node]), float(g_star[m + node]), float(g_star[2 * m + node]))  # a, bp, bm
     out = []
     for st in (OPEN, STICK, SLIP_P, SLIP_M):
-        if st == SLIP_M and ctx.F0[node]:
+        if st == SLIP_M and f0:
             continue  # same as slip+ (free) when F = 0
-        if all(sg * g_star[ind * m + node] >= -tol for ind, sg in _CONS[(st, bool(ctx.F0[node]))]):
+        for ind, sg in _CONS[(st, f0)]:
+            if not sg * g[ind] >= -tol:
+                break
+        else:  # every constraint holds
             out.append(st)
     return out
 
 
-def _valid_direction(ctx: _Context, ln: _Line, alpha: float, d: int) -> bool:
-    """Is the branch ln consistent on [alpha, alpha + d*eps] for some eps > 0 (decided from values and slopes)?"""
+def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
+    """(valid for d = +1, valid for d = -1): is the branch ln consistent on [alpha, alpha + d*eps]
+    for some eps > 0?  Decided from values and slopes: every constraint must be positive at alpha
+    or vanish there and not decrease in the direction d."""
     vals = ln.values(alpha)
     tv = ln.tol_v(alpha, ctx.rtol)
     if vals.min(initial=np.inf) < -tv:
-        return False
+        return False, False
     zero = (vals <= tv).nonzero()[0]  # the constraints vanishing at alpha: their slopes decide
     if not zero.size:
-        return True
-    v, dsl = vals[zero], d * ln.slopes[zero]
+        return True, True
     ts = ln.tol_s(ctx.rtol)
-    # A small positive value that reaches zero only beyond a tiny alpha window ahead is a
-    # separate, later transition (a near-tie on a fine mesh: the value tolerance is relative
-    # to the largest indicator), not a constraint vanishing here.
-    ahead = (v > 0.0) & (dsl < -ts) & (v > -dsl * (ALPHA_WINDOW * (1.0 + abs(alpha))))
-    ok = ahead | (dsl > ts) | (np.abs(dsl) <= ts)
-    return bool(ok.all())
+    window = ALPHA_WINDOW * (1.0 + abs(alpha))
+    valid = [True, True]
+    # few constraints vanish at once: plain floats are cheaper than array operations here
+    for v, sl in zip(vals[zero].tolist(), ln.slopes[zero].tolist()):
+        for k, d in enumerate((1, -1)):
+            dsl = d * sl
+            # A small positive value that reaches zero only beyond a tiny alpha window ahead is a
+            # separate, later transition (a near-tie on a fine mesh: the value tolerance is
+            # relative to the largest indicator), not a constraint vanishing here.
+            ahead = v > 0.0 and dsl < -ts and v > -dsl * window
+            if not (ahead or dsl > ts or abs(dsl) <= ts):
+                valid[k] = False
+    return valid[0], valid[1]
 
 
 def _same_line(a: _Line, b: _Line, rtol=1e-10) -> bool:
@@ -309,23 +339,24 @@ def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tu
     lam_star = ln.lam(alpha)
     g_star = ln.indicators(alpha)  # indicators are linear in y
     tol = ln.tol_v(alpha, ctx.rtol)
-    nodes = sorted({int(ln.cnode[k]) for k in vanish})
+    nodes = sorted(set(ln.cnode[vanish].tolist()))
     choices = [_admissible_states(ctx, g_star, i, tol) for i in nodes]
-    total = int(np.prod([len(c) for c in choices])) if choices else 0
+    total = math.prod(len(c) for c in choices) if choices else 0
     info = {"nodes": nodes, "admissible": {i: [STATE_NAMES[c] for c in ch] for i, ch in zip(nodes, choices)},
             "candidates": total}
     if total > MAX_CANDIDATES:
         return None, info
+    current = ln.codes[nodes].tolist()  # the states of ln at these nodes
     combos = list(itertools.product(*choices))
     # fewest changed nodes first (deterministic preference)
-    combos.sort(key=lambda cb: sum(int(c != ln.codes[i]) for i, c in zip(nodes, cb)))
+    combos.sort(key=lambda cb: sum(c != o for c, o in zip(cb, current)))
     out = []
     lsc = max(np.abs(lam_star).max(initial=0), ln.tol_v(alpha, 1.0), 1e-300)
     for cb in combos:
+        if list(cb) == current:
+            continue  # ln itself
         codes = ln.codes.copy()
         codes[nodes] = cb
-        if np.array_equal(codes, ln.codes):
-            continue
         try:
             cand = ctx.line(codes)
         except SingularSystemError as exc:
@@ -335,11 +366,12 @@ def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tu
             log.info("alpha=%.12g: candidate %s does not pass through the transition point; skipped",
                      alpha, cand.sets)
             continue
+        valid = _valid_directions(ctx, cand, alpha)
         for d in (s, -s):
+            if not valid[0 if d > 0 else 1]:
+                continue
             if d == -s and _same_line(cand, ln):
                 continue  # the incoming branch itself (equivalent sets)
-            if not _valid_direction(ctx, cand, alpha, d):
-                continue
             if any(dd == d and _same_line(cand, other) for other, dd in out):
                 continue
             out.append((cand, d))
@@ -400,7 +432,7 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
         if emit(idx):
             return stopped()
     while True:
-        key = (ctx.key(ln.codes), s)
+        key = (ln.key, s)
         seen = ctx.visited.setdefault(key, [])
         if any(abs(alpha - a) <= 1e-12 * (1.0 + abs(alpha)) for a in seen):
             path.events.append(PathEvent("cycling", alpha, f"branch {ln.sets} with orientation {s} entered again at "
@@ -424,7 +456,8 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
                                          branch.index))
             return "max_transitions"
         conts, info = _continuations(ctx, ln, a_star, s, vanish)
-        vanishing = [{"node": int(ln.cnode[k]), "set": SET_NAMES[int(ln.cidx[k]) // ctx.m]} for k in vanish]
+        vanishing = [{"node": i, "set": SET_NAMES[c // ctx.m]}
+                     for i, c in zip(ln.cnode[vanish].tolist(), ln.cidx[vanish].tolist())]
         if conts is None:
             path.events.append(PathEvent("degenerate", a_star, f"{info['candidates']} candidate set combinations at "
                                          f"nodes {info['nodes']} (limit {MAX_CANDIDATES}); the transition is "
@@ -444,8 +477,10 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
         for ch in vanishing:
             i = ch["node"]
             changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
-        for i in np.flatnonzero(nxt.codes != ln.codes):  # state changes at nodes whose own constraint did not vanish
-            if not any(c["node"] == int(i) for c in changes):
+        changed = {c["node"] for c in changes}
+        # state changes at nodes whose own constraint did not vanish
+        for i in (nxt.codes != ln.codes).nonzero()[0].tolist():
+            if i not in changed:
                 changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],
                                 "to": STATE_NAMES[int(nxt.codes[i])]})
         tr = Transition(len(path.transitions), a_star, kind, changes[0]["node"], changes[0]["set"], branch.index,
