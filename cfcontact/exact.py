@@ -54,6 +54,7 @@ from cfcontact.path import (
     Transition,
     _alpha_range,
     branch_endpoints,
+    resume_parts,
     start_point,
 )
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
@@ -521,20 +522,7 @@ def _resume_state(ctx: _Context, branch, ln: _Line, s: int, alpha: float, n_tran
 def _resume(system, alpha_start, alpha_end, options, solver, resume) -> SolutionPath:
     """Continue an exact run stopped by its callback (see :func:`trace_exact`)."""
     t0 = time.perf_counter()
-    usage = "resume must be a dict {'path': SolutionPath, 'state': path.resume_state}"
-    try:
-        path, state = resume["path"], resume["state"]
-    except (TypeError, KeyError):
-        raise InputError(usage) from None
-    if not isinstance(path, SolutionPath) or not isinstance(state, dict):
-        raise InputError(usage)
-    if path.method != "exact" or not path.branches or not path._alphas:
-        raise InputError(f"cannot resume from {path!r}: not a started exact path")
-    if (path.n, path.m) != (system.n, system.m):
-        raise InputError(f"cannot resume: the path has n={path.n}, m={path.m}, the system n={system.n}, m={system.m}")
-    if (path.alpha_start, path.alpha_end) != (float(alpha_start), float(alpha_end)):
-        raise InputError(f"cannot resume: the path runs from {path.alpha_start} to {path.alpha_end}, "
-                         f"not from {alpha_start} to {alpha_end}")
+    path, state = resume_parts(system, alpha_start, alpha_end, resume, "exact")
     try:
         branch = path.branches[int(state["branch"])]
         codes = np.asarray(state["codes"], dtype=np.int8)

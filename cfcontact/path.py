@@ -830,21 +830,29 @@ def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:
     return InactiveSets(nu, tp, tm)
 
 
-def _resume_seed(system, alpha_start, alpha_end, resume):
-    """(path, h, steps, last_seen, done, stats before) of a seed run stopped by its callback."""
+def resume_parts(system, alpha_start, alpha_end, resume, method):
+    """(path, state) of a ``resume`` argument, checked against the system, the alpha range and
+    the method (InputError naming what does not match)."""
+    usage = "resume must be a dict {'path': SolutionPath, 'state': path.resume_state}"
     try:
         path, state = resume["path"], resume["state"]
     except (TypeError, KeyError):
-        raise InputError("resume must be a dict {'path': SolutionPath, 'state': path.resume_state}") from None
+        raise InputError(usage) from None
     if not isinstance(path, SolutionPath) or not isinstance(state, dict):
-        raise InputError("resume must be a dict {'path': SolutionPath, 'state': path.resume_state}")
-    if path.method != "seed" or not path.branches or not path._alphas:
-        raise InputError(f"cannot resume from {path!r}: not a started seed path")
+        raise InputError(usage)
+    if path.method != method or not path.branches or not path._alphas:
+        raise InputError(f"cannot resume from {path!r}: not a started {method} path")
     if (path.n, path.m) != (system.n, system.m):
         raise InputError(f"cannot resume: the path has n={path.n}, m={path.m}, the system n={system.n}, m={system.m}")
     if (path.alpha_start, path.alpha_end) != (float(alpha_start), float(alpha_end)):
         raise InputError(f"cannot resume: the path runs from {path.alpha_start} to {path.alpha_end}, "
                          f"not from {alpha_start} to {alpha_end}")
+    return path, state
+
+
+def _resume_seed(system, alpha_start, alpha_end, resume):
+    """(path, h, steps, last_seen, done, stats before) of a seed run stopped by its callback."""
+    path, state = resume_parts(system, alpha_start, alpha_end, resume, "seed")
     last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c) for k, sg, r, c in state.get("last_seen", [])}
     before = {k: v for k, v in path.stats.items() if isinstance(v, (int, float))}
     return path, float(state["h"]), int(state["steps"]), last_seen, bool(state.get("done", False)), before

@@ -52,71 +52,28 @@ Usage as a script (writes a .msh file)::
 from __future__ import annotations
 
 import math
-import operator
 
 import gmsh
 
-try:  # typed errors of the package when available; both are ValueErrors
-    from cfcontact.errors import GeometryError as _GeometryError
-    from cfcontact.errors import InputError as _InputError
-except Exception:  # pragma: no cover - running as a stand-alone script
-    _InputError = _GeometryError = ValueError
+try:  # the shared checks and tags: from the package, or next to this script when it runs stand-alone
+    from cfcontact.meshes import common
+except ImportError:  # pragma: no cover - stand-alone script or uninstalled source tree
+    import importlib.util as _ilu
+    import os as _os
 
-#: physical group numbers (same as the two-block model)
-TAGS = {
-    "body1": (2, 1),
-    "body2": (2, 2),
-    "contact1": (1, 10),
-    "top1": (1, 12),
-    "right1": (1, 13),
-    "left1": (1, 14),
-    "contact2": (1, 20),
-    "bottom2": (1, 22),
-    "right2": (1, 23),
-    "left2": (1, 24),
-}
+    _spec = _ilu.spec_from_file_location("_cfcontact_meshes_common",
+                                         _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "common.py"))
+    common = _ilu.module_from_spec(_spec)
+    _spec.loader.exec_module(common)
+
+TAGS, CELLS = common.TAGS, common.CELLS
 
 #: default parameters of :func:`build`
 DEFAULTS = dict(radius=1.0, half_angle=30.0, height=0.5, height2=None, nx=16, ny=4, ny2=None,
                 cell="quadrilateral")
 
-CELLS = ("quadrilateral", "triangle")
-
 #: valid range of the half-angle of the arc, degrees: (0, MAX_HALF_ANGLE]
 MAX_HALF_ANGLE = 80.0
-
-
-def _check_count(name, value, minimum=1):
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        value = operator.index(value)
-    except TypeError:
-        raise _InputError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
-    if value < minimum:
-        raise _InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return value
-
-
-def _check_length(name, value):
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        value = float(value)
-    except (TypeError, ValueError):
-        raise _InputError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise _InputError(f"{name} must be a positive number, got {value!r}")
-    return value
-
-
-def _check_cell(cell):
-    aliases = {"quadrilateral": "quadrilateral", "quad": "quadrilateral", "quadrilaterals": "quadrilateral",
-               "triangle": "triangle", "tri": "triangle", "triangles": "triangle"}
-    key = str(cell).lower()
-    if key not in aliases:
-        raise _InputError(f"cell must be one of {CELLS}, got {cell!r}")
-    return aliases[key]
 
 
 def check_parameters(radius=1.0, half_angle=30.0, height=0.5, height2=None, nx=16, ny=4, ny2=None,
@@ -126,21 +83,16 @@ def check_parameters(radius=1.0, half_angle=30.0, height=0.5, height2=None, nx=1
     Raises InputError (a ValueError) for a wrong type or a non-positive size, GeometryError
     (a subclass) for a half-angle outside ``(0, 80]`` degrees.
     """
-    radius = _check_length("radius", radius)
-    try:
-        if isinstance(half_angle, bool):
-            raise TypeError
-        half_angle = float(half_angle)
-    except (TypeError, ValueError):
-        raise _InputError(f"half_angle must be a number (degrees), got {half_angle!r}") from None
-    if not (math.isfinite(half_angle) and 0.0 < half_angle <= MAX_HALF_ANGLE):
-        raise _GeometryError(f"half_angle must lie in (0, {MAX_HALF_ANGLE:g}] degrees, got {half_angle!r}")
-    height = _check_length("height", height)
-    height2 = height if height2 is None else _check_length("height2", height2)
-    nx = _check_count("nx", nx, 2)
-    ny = _check_count("ny", ny, 1)
-    ny2 = ny if ny2 is None else _check_count("ny2", ny2, 1)
-    cell = _check_cell(cell)
+    radius = common.check_length("radius", radius)
+    half_angle = common.check_angle("half_angle", half_angle)
+    if not 0.0 < half_angle <= MAX_HALF_ANGLE:
+        raise common.GeometryError(f"half_angle must lie in (0, {MAX_HALF_ANGLE:g}] degrees, got {half_angle!r}")
+    height = common.check_length("height", height)
+    height2 = height if height2 is None else common.check_length("height2", height2)
+    nx = common.check_count("nx", nx, 2)
+    ny = common.check_count("ny", ny, 1)
+    ny2 = ny if ny2 is None else common.check_count("ny2", ny2, 1)
+    cell = common.check_cell(cell)
     return dict(radius=radius, half_angle=half_angle, height=height, height2=height2, nx=nx, ny=ny, ny2=ny2,
                 cell=cell)
 
@@ -207,12 +159,7 @@ def build(radius=1.0, half_angle=30.0, height=0.5, height2=None, nx=16, ny=4, ny
         "body1": (2, [s1]), "contact1": (1, [c1]), "top1": (1, [t1]), "right1": (1, [r1]), "left1": (1, [l1]),
         "body2": (2, [s2]), "contact2": (1, [c2]), "bottom2": (1, [b2]), "right2": (1, [r2]), "left2": (1, [l2]),
     }
-    created = {}
-    for name, (dim, ents) in groups.items():
-        number = TAGS[name][1]
-        gmsh.model.addPhysicalGroup(dim, ents, number)
-        gmsh.model.setPhysicalName(dim, number, name)
-        created[name] = (dim, number)
+    created = common.add_physical_groups(gmsh, groups)
     if mesh:
         gmsh.model.mesh.generate(2)
     return created

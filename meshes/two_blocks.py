@@ -39,82 +39,36 @@ Usage as a script (writes a .msh file)::
 from __future__ import annotations
 
 import math
-import operator
 
 import gmsh
 
-try:  # typed error of the package when available; it is a ValueError
-    from cfcontact.errors import InputError as _InputError
-except Exception:  # pragma: no cover - running as a stand-alone script
-    _InputError = ValueError
+try:  # the shared checks and tags: from the package, or next to this script when it runs stand-alone
+    from cfcontact.meshes import common
+except ImportError:  # pragma: no cover - stand-alone script or uninstalled source tree
+    import importlib.util as _ilu
+    import os as _os
 
-#: physical group numbers of the two-block model
-TAGS = {
-    "body1": (2, 1),
-    "body2": (2, 2),
-    "contact1": (1, 10),
-    "top1": (1, 12),
-    "right1": (1, 13),
-    "left1": (1, 14),
-    "contact2": (1, 20),
-    "bottom2": (1, 22),
-    "right2": (1, 23),
-    "left2": (1, 24),
-}
+    _spec = _ilu.spec_from_file_location("_cfcontact_meshes_common",
+                                         _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "common.py"))
+    common = _ilu.module_from_spec(_spec)
+    _spec.loader.exec_module(common)
+
+TAGS, CELLS = common.TAGS, common.CELLS
 
 #: default parameters of :func:`build`
 DEFAULTS = dict(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0)
 
-CELLS = ("quadrilateral", "triangle")
-
-
-def _check_count(name, value):
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        value = operator.index(value)
-    except TypeError:
-        raise _InputError(f"{name} must be a positive integer, got {value!r}") from None
-    if value < 1:
-        raise _InputError(f"{name} must be a positive integer, got {value!r}")
-    return value
-
-
-def _check_length(name, value):
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise _InputError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise _InputError(f"{name} must be a positive number, got {value!r}")
-    return value
-
-
-def _check_cell(cell):
-    aliases = {"quadrilateral": "quadrilateral", "quad": "quadrilateral", "quadrilaterals": "quadrilateral",
-               "triangle": "triangle", "tri": "triangle", "triangles": "triangle"}
-    key = str(cell).lower()
-    if key not in aliases:
-        raise _InputError(f"cell must be one of {CELLS}, got {cell!r}")
-    return aliases[key]
-
-
 def check_parameters(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0, *,
                      nx2=None, ny2=None, height2=None):
     """Validated, normalised parameters of :func:`build` as a dict (raises InputError / ValueError)."""
-    nx, ny = _check_count("nx", nx), _check_count("ny", ny)
-    nx2 = nx if nx2 is None else _check_count("nx2", nx2)
-    ny2 = ny if ny2 is None else _check_count("ny2", ny2)
-    length = _check_length("length", length)
-    height = _check_length("height", height)
-    height2 = height if height2 is None else _check_length("height2", height2)
-    cell = _check_cell(cell)
-    try:
-        angle = float(angle)
-    except (TypeError, ValueError):
-        raise _InputError(f"angle must be a number (degrees), got {angle!r}") from None
-    if not math.isfinite(angle):
-        raise _InputError(f"angle must be finite, got {angle!r}")
+    nx, ny = common.check_count("nx", nx), common.check_count("ny", ny)
+    nx2 = nx if nx2 is None else common.check_count("nx2", nx2)
+    ny2 = ny if ny2 is None else common.check_count("ny2", ny2)
+    length = common.check_length("length", length)
+    height = common.check_length("height", height)
+    height2 = height if height2 is None else common.check_length("height2", height2)
+    cell = common.check_cell(cell)
+    angle = common.check_angle("angle", angle)
     return dict(nx=nx, ny=ny, length=length, height=height, cell=cell, angle=angle,
                 nx2=nx2, ny2=ny2, height2=height2)
 
@@ -189,12 +143,7 @@ def build(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0,
             "left2": (1, [l2]),
         })
     geo.synchronize()
-    created = {}
-    for name, (dim, ents) in groups.items():
-        number = TAGS[name][1]
-        gmsh.model.addPhysicalGroup(dim, ents, number)
-        gmsh.model.setPhysicalName(dim, number, name)
-        created[name] = (dim, number)
+    created = common.add_physical_groups(gmsh, groups)
     if mesh:
         gmsh.model.mesh.generate(2)
     return created
@@ -216,12 +165,16 @@ def _main(argv=None):
     ap.add_argument("--height2", type=float, default=None)
     ap.add_argument("--foundation", action="store_true", help="body 1 only (rigid foundation)")
     args = ap.parse_args(argv)
+    try:
+        params = check_parameters(args.nx, args.ny, args.length, args.height, args.cell, args.angle,
+                                  nx2=args.nx2, ny2=args.ny2, height2=args.height2)
+    except ValueError as exc:
+        ap.error(str(exc))
     gmsh.initialize([], False)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("two_blocks")
-        build(args.nx, args.ny, args.length, args.height, args.cell, args.angle,
-              nx2=args.nx2, ny2=args.ny2, height2=args.height2, foundation=args.foundation)
+        build(foundation=args.foundation, **params)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.write(args.output)
     finally:

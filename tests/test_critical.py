@@ -1,5 +1,7 @@
 """cfcontact.critical: the friction at which a contact configuration can first make the path fold."""
 
+import itertools
+import json
 import os
 import subprocess
 import sys
@@ -8,7 +10,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-import cfcontact
+from cfcontact.condensed import get_condensed_solver
 from cfcontact.critical import critical_friction, first_sign_change, piece_matrices
 from cfcontact.errors import InputError
 from cfcontact.lumped import one_node, random_system
@@ -46,11 +48,7 @@ def test_random_lumped_scan_agrees_with_determinant_grid():
     system = random_system(3, seed=4, coupling=3.0)
     crit = critical_friction(system, window=3, stick_window=3)
     assert np.isfinite(crit.friction)
-    from cfcontact.condensed import get_condensed_solver
-
     S = get_condensed_solver(system).S
-    import itertools
-
     grid = np.linspace(0.0, crit.friction * (1 - 1e-6), 400)
     for L in (1, 2, 3):
         for i0 in range(3 - L + 1):
@@ -79,8 +77,6 @@ def test_demo_script_quick(tmp_path):
     out = tmp_path / "crit.json"
     subprocess.run([sys.executable, os.path.join(ROOT, "demos", "critical_friction.py"), "--quick", "--json", str(out)],
                    check=True, capture_output=True)
-    import json
-
     rows = {r["model"]: r for r in json.loads(out.read_text())}
     assert rows["equal blocks (height2 = height)"]["critical_friction"] == float("inf")
     main = rows["main demo model (steel blocks, quadrilaterals)"]["critical_friction"]

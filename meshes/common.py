@@ -1,0 +1,92 @@
+"""What the gmsh scripts of ``meshes/`` share: the tag convention and the parameter checks.
+
+Importable as ``cfcontact.meshes.common`` and, when a script runs stand-alone
+(``python3 meshes/two_blocks.py ...``), from the script's folder; see :func:`load`.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+
+try:  # typed errors of the package when available; both are ValueErrors
+    from cfcontact.errors import GeometryError, InputError
+except Exception:  # pragma: no cover - running as a stand-alone script
+    InputError = GeometryError = ValueError
+
+#: physical group numbers of every model (DESIGN.md; README "Tag convention")
+TAGS = {
+    "body1": (2, 1),
+    "body2": (2, 2),
+    "contact1": (1, 10),
+    "top1": (1, 12),
+    "right1": (1, 13),
+    "left1": (1, 14),
+    "contact2": (1, 20),
+    "bottom2": (1, 22),
+    "right2": (1, 23),
+    "left2": (1, 24),
+}
+
+CELLS = ("quadrilateral", "triangle")
+_CELL_ALIASES = {"quadrilateral": "quadrilateral", "quad": "quadrilateral", "quadrilaterals": "quadrilateral",
+                 "triangle": "triangle", "tri": "triangle", "triangles": "triangle"}
+
+
+def check_count(name, value, minimum=1):
+    """An integer >= ``minimum`` (booleans refused), else InputError naming ``name``."""
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        value = operator.index(value)
+    except TypeError:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
+    if value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def check_length(name, value):
+    """A finite positive number (booleans refused), else InputError naming ``name``."""
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        value = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a positive number, got {value!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{name} must be a positive number, got {value!r}")
+    return value
+
+
+def check_angle(name, value):
+    """A finite number of degrees, else InputError naming ``name``."""
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        value = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number (degrees), got {value!r}") from None
+    if not math.isfinite(value):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return value
+
+
+def check_cell(cell):
+    """"quadrilateral" or "triangle" (a few aliases accepted), else InputError listing CELLS."""
+    key = str(cell).lower()
+    if key not in _CELL_ALIASES:
+        raise InputError(f"cell must be one of {CELLS}, got {cell!r}")
+    return _CELL_ALIASES[key]
+
+
+def add_physical_groups(gmsh, groups):
+    """Create the physical groups ``{name: (dim, [entities])}`` with TAGS' numbers and names;
+    returns ``{name: (dim, number)}``."""
+    created = {}
+    for name, (dim, ents) in groups.items():
+        number = TAGS[name][1]
+        gmsh.model.addPhysicalGroup(dim, ents, number)
+        gmsh.model.setPhysicalName(dim, number, name)
+        created[name] = (dim, number)
+    return created
