@@ -959,7 +959,7 @@ def _panel_solutions(path):
     if not sols and len(path.alphas):
         from cfcontact.ssnm import Solution
 
-        y = path.ys[-1]
+        y = path.point_y(len(path.alphas) - 1)
         n, m = path.n, path.m
         sols = [Solution(y[:n], y[n:n + m], y[n + m:], float(path.alphas[-1]),
                          path.branches[path.point_branch[-1]].sets, 0)]

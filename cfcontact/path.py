@@ -302,6 +302,18 @@ class SolutionPath:
         self._form_points(range(len(self._ys)))
         return np.asarray(list(self._ys), dtype=float).reshape(len(self._ys), self.n + 2 * self.m)
 
+    def point_y(self, i: int) -> np.ndarray:
+        """y of stored point ``i`` (a lazy path forms the displacements of that point's branch only)."""
+        return self._ys[int(i)]
+
+    @property
+    def lams(self) -> np.ndarray:
+        """(lam_n, lam_t) of every stored point, (P, 2m): no displacement is formed."""
+        if not self._pending:
+            return self.ys[:, self.n:]
+        return np.asarray([self._point_lam(i) for i in range(len(self._alphas))], dtype=float).reshape(
+            len(self._alphas), 2 * self.m)
+
     @property
     def point_branch(self) -> np.ndarray:
         return np.asarray(self._point_branch, dtype=int)
@@ -386,7 +398,9 @@ class SolutionPath:
             for i in idx:
                 yield self._alphas[i], formed[i] if i in formed else self._ys[i]
 
-    def _branch_lam(self, b, alpha):
+    def branch_lam(self, branch, alpha):
+        """(lam_n, lam_t) on a branch (or its index) at alpha; a lazy branch forms no displacement."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
         if b in self._lam:
             lam1, lam2 = self._lam[b]
             return (1.0 - alpha) * lam1 + alpha * lam2
@@ -396,7 +410,7 @@ class SolutionPath:
         y = list.__getitem__(self._ys, i)
         if y is not None:
             return y[self.n:]
-        return self._branch_lam(self._point_branch[i], self._alphas[i])
+        return self.branch_lam(self._point_branch[i], self._alphas[i])
 
     def _branch_indicators(self, b, alpha):
         """(a, bp, bm) of (17) on branch b at alpha (from the stored indicators of a lazy branch)."""
@@ -472,7 +486,7 @@ class SolutionPath:
             else:
                 if not self._consistent(None, b.sets, ind=self._branch_indicators(b.index, alpha)):
                     continue
-                key = (self._branch_lam(b.index, alpha), True)
+                key = (self.branch_lam(b.index, alpha), True)
             if any(_same_point(key, z, self.n, rtol) for z in keys):
                 continue
             keys.append(key)
@@ -500,8 +514,8 @@ class SolutionPath:
     def component(self, spec) -> np.ndarray:
         """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y."""
         idx = self.component_index(spec)
-        if idx >= self.n and self._pending:  # a multiplier: no displacement needed
-            return np.array([self._point_lam(i)[idx - self.n] for i in range(len(self._alphas))], dtype=float)
+        if idx >= self.n:  # a multiplier: no displacement needed
+            return self.lams[:, idx - self.n]
         return self.ys[:, idx]
 
     def component_index(self, spec) -> int:

@@ -48,10 +48,10 @@ def default_component(path) -> tuple:
     """
     if path.m == 0:
         raise InputError("the path has no contact nodes; give a component explicitly, e.g. ('u', 0)")
-    ys = path.ys
-    if ys.shape[0] == 0:
+    lams = path.lams  # multipliers only: a lazy path forms no displacement here
+    if lams.shape[0] == 0:
         raise InputError("the path has no points to plot")
-    lam_n = ys[:, path.n:path.n + path.m]
+    lam_n = lams[:, :path.m]
     spread = lam_n.max(axis=0) - lam_n.min(axis=0)
     return ("lam_n", int(np.argmax(spread)))
 
@@ -98,11 +98,10 @@ def path_curve(path, component=None):
     Branches are affine in alpha, so the polyline through the stored points is the exact
     path between points of one branch (the exact method stores just entry and exit points).
     """
-    _, idx = _resolve_component(path, component)
-    ys = path.ys
-    if ys.shape[0] == 0:
+    component, idx = _resolve_component(path, component)
+    if len(path.alphas) == 0:
         raise InputError("the path has no points to plot")
-    return path.alphas, ys[:, idx], path.point_branch
+    return path.alphas, path.component(idx), path.point_branch
 
 
 def _transition_points(path, idx, kind):
@@ -111,7 +110,10 @@ def _transition_points(path, idx, kind):
         if t.kind != kind:
             continue
         alpha = float(t.alpha)
-        value = float(path.branch_y(t.from_branch, alpha)[idx])
+        if idx >= path.n:  # a multiplier: no displacement needed
+            value = float(path.branch_lam(t.from_branch, alpha)[idx - path.n])
+        else:
+            value = float(path.branch_y(t.from_branch, alpha)[idx])
         a.append(alpha)
         v.append(value)
     return np.asarray(a, dtype=float), np.asarray(v, dtype=float)

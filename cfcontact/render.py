@@ -578,16 +578,16 @@ def _frame_states(path, frames):
                     picks.append((a, path.branch_y(int(branches[j]), a), int(branches[j])))
                 else:
                     jj = j if target - s[j] <= s[min(j + 1, P - 1)] - target else min(j + 1, P - 1)
-                    picks.append((alphas[jj], path.ys[jj], int(branches[jj])))
+                    picks.append((alphas[jj], path.point_y(jj), int(branches[jj])))
         else:
             for j in np.unique(np.linspace(0, P - 1, k).round().astype(int)):
-                picks.append((alphas[j], path.ys[j], int(branches[j])))
+                picks.append((alphas[j], path.point_y(j), int(branches[j])))
     else:
         idx = [int(i) for i in frames]
         bad = [i for i in idx if not 0 <= i < P]
         if bad:
             raise InputError(f"frame point indices {bad} out of range (0..{P - 1})")
-        picks = [(alphas[j], path.ys[j], int(branches[j])) for j in idx]
+        picks = [(alphas[j], path.point_y(j), int(branches[j])) for j in idx]
     out = []
     for a, y, b in picks:
         sets = path.branches[b].sets

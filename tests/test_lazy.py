@@ -132,3 +132,24 @@ def test_condensed_ssnm_matches_full_ssnm(systems):
             sf = cfcontact.ssnm(system, a, solver=DirNeuSolver(system))
             assert np.abs(sc.y - sf.y).max() <= 1e-10 * np.abs(sf.y).max()
             assert sc.sets.equivalent(sf.sets, system.friction)
+
+
+def test_plotting_a_multiplier_forms_no_displacement(systems, tmp_path):
+    """Plots of multiplier components (the default) read the branches' multipliers only; the
+    values equal those of the eagerly formed path."""
+    from cfcontact import plotting
+
+    system = systems[0]
+    solver = CondensedSolver(system)
+    lazy = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    eager = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="full")
+    solves = solver.stats.linear_solves
+    assert plotting.default_component(lazy) == plotting.default_component(eager)
+    a, v, _ = plotting.path_curve(lazy)
+    ae, ve, _ = plotting.path_curve(eager)
+    np.testing.assert_allclose(a, ae, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(v, ve, rtol=0, atol=1e-10 * np.abs(ve).max())
+    plotting.save_figure(plotting.plot_path(lazy), str(tmp_path / "p.png"))
+    assert (tmp_path / "p.png").stat().st_size > 0
+    assert lazy.lazy and solver.stats.linear_solves == solves  # nothing formed
+    np.testing.assert_allclose(lazy.lams, eager.ys[:, system.n:], rtol=0, atol=1e-10 * np.abs(ve).max())
