@@ -81,13 +81,16 @@ def _material_items(value, what):
 
 def check_material(E, nu, plane="strain"):
     """Validate E and nu (numbers or dicts {body: number}) and ``plane`` before any collective work."""
-    for e_body, e in _material_items(E, "E"):
-        for n_body, n in _material_items(nu, "nu"):
-            try:
-                lame_parameters(e, n, plane)
+    lame_parameters(1.0, 0.0, plane)  # the plane
+    for name, value in (("E", E), ("nu", nu)):
+        for body, v in _material_items(value, name):
+            where = "" if body is None else f" (in {name}[{body!r}])"
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise InputError(f"{name} must be a number, got {v!r}{where}")
+            try:  # each value against a valid partner, so the message names only this one
+                lame_parameters(v, 0.0, plane) if name == "E" else lame_parameters(1.0, v, plane)
             except InputError as exc:
-                where = [f"{w}[{b!r}]" for w, b in (("E", e_body), ("nu", n_body)) if b is not None]
-                raise InputError(f"{exc}" + (f" (in {', '.join(where)})" if where else "")) from None
+                raise InputError(f"{exc}{where}") from None
 
 
 def material_per_body(E, nu, plane, groups, bodies):
