@@ -647,9 +647,8 @@ def _warn(args, text):
 class _Runner:
     """The PathOptions callback of ``run``: progress line, stop conditions, checkpoint timing."""
 
-    def __init__(self, args, solver, progress, t_start, method, resumed_path=None):
+    def __init__(self, args, solver, progress, t_start, resumed_path=None):
         self.args, self.solver, self.progress, self.t_start = args, solver, progress, t_start
-        self.method = method
         self.interrupted = False
         self.reason = None
         self.solves0 = solver.stats.linear_solves
@@ -660,21 +659,18 @@ class _Runner:
         self.prev_alpha = float(resumed_path.alphas[-1]) if resumed_path is not None else None
         self.last_checkpoint = time.monotonic()
         self.checkpoint_every = args.checkpoint_every
-        self.warned_folds = False
         self.points = 0
 
     def status_line(self, alpha, branches, transitions, folds):
         solves = self.solves_before + self.solver.stats.linear_solves - self.solves0
-        return (f"alpha={alpha:.8g}  branches {branches}  transitions {transitions}  folds "
-                f"{'?' if folds is None else folds}  linear solves {solves}  "
+        return (f"alpha={alpha:.8g}  branches {branches}  transitions {transitions}  folds {folds}  "
+                f"linear solves {solves}  "
                 f"{time.monotonic() - self.t_start:.1f} s")
 
     def on_point(self, pt):
         self.points += 1
-        path = getattr(pt, "path", None)
-        folds = len(path.folds) if path is not None else None
-        transitions = len(path.transitions) if path is not None else pt.branch
-        branches = len(path.branches) if path is not None else pt.branch + 1
+        path = pt.path  # both methods pass the live path
+        folds, transitions, branches = len(path.folds), len(path.transitions), len(path.branches)
         self.progress.update(self.status_line(pt.alpha, branches, transitions, folds))
         args = self.args
         prev, self.prev_alpha = self.prev_alpha, float(pt.alpha)
@@ -682,7 +678,7 @@ class _Runner:
             self.reason = "interrupted (Ctrl-C)"
         elif args.time_limit is not None and time.monotonic() - self.t_start >= args.time_limit:
             self.reason = f"time limit of {args.time_limit:g} s reached"
-        elif args.stop_after_folds is not None and folds is not None \
+        elif args.stop_after_folds is not None \
                 and folds > self.folds0 and folds >= args.stop_after_folds:
             self.reason = f"stopped after {folds} fold(s)"
         elif args.stop_after_transitions is not None and transitions > self.trans0 \
@@ -693,9 +689,6 @@ class _Runner:
             self.reason = f"stopped at alpha={pt.alpha:.8g} (reached {args.stop_at_alpha:g})"
         elif self.checkpoint_every and time.monotonic() - self.last_checkpoint >= self.checkpoint_every:
             self.reason = "checkpoint"
-        if args.stop_after_folds is not None and folds is None and not self.warned_folds:
-            self.warned_folds = True
-            log.warning("--stop-after-folds: method %r does not report folds while running; ignored", self.method)
         return self.reason is not None
 
 
@@ -1091,7 +1084,7 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
     method = p["method"]
     opts = {k: v for k, v in p.items() if k in PathOptions.__dataclass_fields__}
     solver = select_solver(system, method, p.get("backend", "auto"))
-    runner = _Runner(args, solver, progress, t_start, method, resume["path"] if resume else None)
+    runner = _Runner(args, solver, progress, t_start, resume["path"] if resume else None)
 
     t = time.perf_counter()
     with _sigint(runner, progress):

@@ -98,7 +98,7 @@ def path_curve(path, component=None):
     Branches are affine in alpha, so the polyline through the stored points is the exact
     path between points of one branch (the exact method stores just entry and exit points).
     """
-    component, idx = _resolve_component(path, component)
+    _, idx = _resolve_component(path, component)
     if len(path.alphas) == 0:
         raise InputError("the path has no points to plot")
     return path.alphas, path.component(idx), path.point_branch
