@@ -139,15 +139,7 @@ def build(radius=1.0, half_angle=30.0, height=0.5, height2=None, nx=16, ny=4, ny
             lt = geo.addLine(p4, p3)
         lr = geo.addLine(p2, p3)
         ll = geo.addLine(p1, p4)
-        loop = geo.addCurveLoop([lb, lr, -lt, -ll])
-        surf = geo.addPlaneSurface([loop])
-        for ln in (lb, lt):
-            geo.mesh.setTransfiniteCurve(ln, nx + 1)
-        for ln in (lr, ll):
-            geo.mesh.setTransfiniteCurve(ln, my + 1)
-        geo.mesh.setTransfiniteSurface(surf, "Left", [p1, p2, p3, p4])
-        if cell == "quadrilateral":
-            geo.mesh.setRecombine(2, surf)
+        surf = common.structured_surface(geo, (p1, p2, p3, p4), lb, lr, lt, ll, nx, my, cell)
         return surf, lb, lr, lt, ll
 
     s1, c1, r1, t1, l1 = patch(a, yc, yc + height, False, ny)

@@ -80,6 +80,23 @@ def check_cell(cell):
     return _CELL_ALIASES[key]
 
 
+def structured_surface(geo, corners, bottom, right, top, left, mx, my, cell):
+    """A transfinite surface bounded by four curves: ``bottom``/``top`` oriented left -> right with
+    ``mx`` cells, ``right``/``left`` bottom -> top with ``my`` cells (parallel sides share one
+    parametrisation, so opposite nodes match); ``corners`` the four points counter-clockwise from
+    bottom-left.  Quadrilaterals are recombined; triangles split each quadrilateral in two."""
+    loop = geo.addCurveLoop([bottom, right, -top, -left])
+    surf = geo.addPlaneSurface([loop])
+    for ln in (bottom, top):
+        geo.mesh.setTransfiniteCurve(ln, mx + 1)
+    for ln in (right, left):
+        geo.mesh.setTransfiniteCurve(ln, my + 1)
+    geo.mesh.setTransfiniteSurface(surf, "Left", list(corners))
+    if cell == "quadrilateral":
+        geo.mesh.setRecombine(2, surf)
+    return surf
+
+
 def add_physical_groups(gmsh, groups):
     """Create the physical groups ``{name: (dim, [entities])}`` with TAGS' numbers and names;
     returns ``{name: (dim, number)}``."""

@@ -114,15 +114,7 @@ def build(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral", angle=0.0,
         lr = geo.addLine(p2, p3)
         lt = geo.addLine(p4, p3)
         ll = geo.addLine(p1, p4)
-        loop = geo.addCurveLoop([lb, lr, -lt, -ll])
-        surf = geo.addPlaneSurface([loop])
-        for ln in (lb, lt):
-            geo.mesh.setTransfiniteCurve(ln, mx + 1)
-        for ln in (lr, ll):
-            geo.mesh.setTransfiniteCurve(ln, my + 1)
-        geo.mesh.setTransfiniteSurface(surf, "Left", [p1, p2, p3, p4])
-        if cell == "quadrilateral":
-            geo.mesh.setRecombine(2, surf)
+        surf = common.structured_surface(geo, (p1, p2, p3, p4), lb, lr, lt, ll, mx, my, cell)
         return surf, lb, lr, lt, ll
 
     s1, c1, r1, t1, l1 = block(0.0, 0.0, length, height, nx, ny)
