@@ -47,8 +47,11 @@ log = logging.getLogger(__name__)
 #: entries per rank; otherwise in column blocks of at most this many entries.
 STORE_LIMIT = 50_000_000
 #: By default S comes from MUMPS' Schur complement when K^-1 B^T (n x 2m) has at least this
-#: many entries (below it the 2m solves are cheap and slightly more accurate).
-SCHUR_MIN_ENTRIES = 10_000_000
+#: many entries.  Below it the 2m solves cost a few milliseconds and give S about 100x more
+#: accurately (main demo: worst relative residual of the path 1e-11 instead of 6e-10); above
+#: it the Schur complement is much cheaper (two blocks, n = 9744, m = 84: S and K's
+#: factorization in 29 ms instead of 104 ms).
+SCHUR_MIN_ENTRIES = 1_000_000
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
@@ -288,7 +291,10 @@ class CondensedSolver:
         dense columns."""
         if self.m == 0 or self.size > 1 or self._schur_dofs is not None:
             return None
-        B = self.B_local.sorted_indices()
+        # the system's loads ride along as two more (full) columns: w1, w2 = B K^-1 (f1, f2) are
+        # needed by every path and cost no separate solve this way
+        fs = self.system.loads_numpy()
+        B = sp.vstack([self.B_local] + [sp.csr_matrix(f) for f in fs]).tocsr().sorted_indices()
         objs = []
         try:
             Bt = PETSc.Mat().createAIJ(size=B.shape, csr=(B.indptr.astype(PETSc.IntType),
@@ -302,15 +308,17 @@ class CondensedSolver:
             Xm.setUp()
             Xm.assemble()
             self.ksp.getPC().getFactorMatrix().matSolve(Bv, Xm)
-            S = self.B_local @ Xm.getDenseArray()  # K^-1 B^T itself is not kept
+            BX = self.B_local @ Xm.getDenseArray()  # K^-1 B^T itself is not kept
         except PETSc.Error as exc:
             log.info("sparse right-hand sides unavailable (PETSc error %s); S from dense columns", exc.ierr)
             return None
         finally:
             for obj in objs:
                 obj.destroy()
+        m2 = 2 * self.m
         self.stats.linear_solves += B.shape[0]
-        return S
+        self._loads.extend((np.array(f, copy=True), BX[:, m2 + j].copy()) for j, f in enumerate(fs))
+        return BX[:, :m2]
 
     def _allreduce(self, a: np.ndarray) -> np.ndarray:
         if self.size == 1:
@@ -435,7 +443,10 @@ class CondensedSolver:
     def _factor_reduced(self, key, rows, closed, slip, coef, describe):
         """LU of the reduced system with unknowns lam[rows] (``closed``: the closed nodes, the
         first entries of ``rows``; ``slip``: slipping nodes with lam_t = coef lam_n), cached as
-        (lu, piv, rows, slip, coef).  ``describe()`` names the sets in the error message."""
+        (lu, piv, rows, slip, coef, support); support = the multipliers that can be non-zero
+        (rows and the slipping nodes' lam_t).  ``describe()`` names the sets in the error message.
+        LAPACK factors the transpose (a Fortran-ordered view of the C-ordered M: no copy); the
+        solves use it transposed back (getrs with trans=1)."""
         m = self.m
         Sr = self.S.take(rows, axis=0)
         M = Sr.take(rows, axis=1)
@@ -443,7 +454,7 @@ class CondensedSolver:
             pos = np.searchsorted(closed, slip)  # column of lam_n,i in the reduced system
             M[:, pos] += Sr.take(m + slip, axis=1) * coef
         if M.size:
-            lu, piv, info = _getrf(M, overwrite_a=True)
+            lu, piv, info = _getrf(M.T, overwrite_a=True)
             d = np.abs(lu.diagonal())
             dmax = d.max()
             # "not dmax < inf" also catches NaN (every comparison with NaN is false)
@@ -452,7 +463,7 @@ class CondensedSolver:
         else:
             lu, piv = M, np.zeros(0, dtype=np.int32)
         self.stats.dense_factorizations += 1
-        entry = (lu, piv, rows, slip, coef)
+        entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if slip.size else rows)
         self._lu[key] = entry
         while len(self._lu) > max(64, self.options.cache):
             self._lu.popitem(last=False)
@@ -482,20 +493,28 @@ class CondensedSolver:
                     entry = self._factor_reduced(key, *self._reduction(Z.nu, Z.tp, Z.tm), lambda: repr(Z))
             else:
                 self._lu.move_to_end(key)
-        lu, piv, rows, slip, coef = entry
+        lu, piv, rows, slip, coef, _ = entry
         self.stats.dense_solves += W.shape[1]
         lam = np.zeros((2 * self.m, W.shape[1]))
         if rows.size:
-            lam[rows] = _getrs(lu, piv, W.take(rows, axis=0))[0]
+            lam[rows] = _getrs(lu, piv, W.take(rows, axis=0), trans=1)[0]
         if slip.size:
             lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
 
-    def indicators(self, lam: np.ndarray, w: np.ndarray) -> np.ndarray:
+    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray) -> tuple:
+        """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
+        the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
+        method needs of a branch."""
+        L = self.multipliers_many(None, W, key=key, codes=codes)
+        return L, self.indicators(L, W, support=self._lu[key][5])
+
+    def indicators(self, lam: np.ndarray, w: np.ndarray, support: Optional[np.ndarray] = None) -> np.ndarray:
         """The indicators (17) stacked (a, bp, bm) (3m, or 3m x k for columns) of DirNeu's
-        lam for the load with w = B K^-1 f, from B u = w - S lam (no u needed)."""
+        lam for the load with w = B K^-1 f, from B u = w - S lam (no u needed).  ``support``:
+        the rows of lam that may be non-zero (default: found from lam)."""
         m, rho = self.m, self.system.rho
-        nz = (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
+        nz = support if support is not None else (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
         if 2 * nz.size < lam.shape[0]:  # open nodes carry no force: only the columns of S of the others
             Bu = w - self.S.take(nz, axis=0).T @ lam[nz]  # S is symmetric: rows are contiguous
         else:
@@ -512,29 +531,44 @@ class CondensedSolver:
         from cfcontact.errors import ConvergenceError
         from cfcontact.ssnm import Solution, inactive_sets
 
-        system, n, m = self.system, self.n, self.m
-        w = self.load_data(f)
-        Z = inactive_sets(system, y0)
-        lam_prev = np.asarray(y0[n:], dtype=float)
+        system, n = self.system, self.n
+        lam, Z, k, converged = self._ssnm_lam(self.load_data(f), inactive_sets(system, y0),
+                                              np.asarray(y0[n:], dtype=float), tol, max_iter)
+        y = np.concatenate([self.displacement(f, lam), lam])
+        if converged:
+            return Solution.from_y(system, y, alpha, iterations=k)
+        raise ConvergenceError(f"SSNM did not converge in {max_iter} iterations at alpha={alpha}",
+                               iterations=max_iter, last=Solution.from_y(system, y, alpha, iterations=max_iter))
+
+    def ssnm_sets(self, f: np.ndarray, tol: float, max_iter: int) -> Optional[InactiveSets]:
+        """The inactive sets of the solution SSNM finds from 0 (as :meth:`ssnm` with y0 = 0),
+        without forming u; None when SSNM does not converge in ``max_iter`` iterations."""
+        m = self.m
+        Z0 = InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
+        lam, Z, k, converged = self._ssnm_lam(self.load_data(f), Z0, np.zeros(2 * m), tol, max_iter)
+        return Z if converged else None
+
+    def _ssnm_lam(self, w, Z, lam_prev, tol, max_iter):
+        """SSNM iterations in the multipliers from the sets Z and multipliers lam_prev:
+        (lam, sets of lam's iteration, iterations, converged); lam is the last iterate (the
+        previous one when not converged, as the seed's ConvergenceError reports it)."""
+        m = self.m
         for k in range(1, int(max_iter) + 1):
             lam = self.multipliers(Z, w)
             self.stats.ssnm_iterations += 1
             if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):
-                y = np.concatenate([self.displacement(f, lam), lam])
-                return Solution.from_y(system, y, alpha, iterations=k)
+                return lam, Z, k, True
             g = self.indicators(lam, w)
             Z = InactiveSets(g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0)
             lam_prev = lam
-        y = np.concatenate([self.displacement(f, lam_prev), lam_prev])
-        raise ConvergenceError(f"SSNM did not converge in {max_iter} iterations at alpha={alpha}",
-                               iterations=max_iter, last=Solution.from_y(system, y, alpha, iterations=max_iter))
+        return lam_prev, Z, int(max_iter), False
 
     def _solve_reduced(self, entry, w):
-        lu, piv, rows, slip, coef = entry
+        lu, piv, rows, slip, coef, _ = entry
         self.stats.dense_solves += 1
         lam = np.zeros(2 * self.m)
         if rows.size:
-            lam[rows] = _getrs(lu, piv, w[rows])[0]
+            lam[rows] = _getrs(lu, piv, w[rows], trans=1)[0]
         lam[self.m + slip] = coef * lam[slip]
         return lam
 

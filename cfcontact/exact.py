@@ -217,13 +217,12 @@ class _Context:
             return ln
         system, solver, n = self.system, self.solver, self.system.n
         cidx, csgn, cnode = state_constraints(codes, self.F0_index)
-        if hasattr(solver, "multipliers_many") and hasattr(solver, "indicators"):
+        if hasattr(solver, "branch_data"):
             # condensed backend: both loads with one LU and no u (formed on demand by the path);
             # the sets are passed as their codes (InactiveSets formed only for branches taken)
             if self._W is None:
                 self.prepare_loads()
-            L = solver.multipliers_many(None, self._W, key=b"exact:" + k, codes=codes)
-            G = solver.indicators(L, self._W)
+            L, G = solver.branch_data(self._W, b"exact:" + k, codes)
             lam1, lam2, g1, g2 = L[:, 0], L[:, 1], G[:, 0], G[:, 1]
 
             def full(lam1=lam1, lam2=lam2):
@@ -612,8 +611,12 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
             raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha_start}: "
                              f"DirNeu(start_sets, f(alpha_start)) is not a solution")
     else:
+        # condensed backend from 0: only the start's sets are needed (its u is formed on demand)
+        start_sets = (solver.ssnm_sets(system.load(alpha), opts.tol, opts.max_iter)
+                      if y0 is None and hasattr(solver, "ssnm_sets") else None)
         try:
-            start = start_point(system, alpha, y0, opts, solver)
+            if start_sets is None:  # SSNM from y0 (or a failed fast start: start_point's restarts)
+                start_sets = start_point(system, alpha, y0, opts, solver).sets
         except ConvergenceError as exc:
             # SSNM is only locally convergent; small problems can be started by enumeration
             if y0 is not None or system.m > START_ENUMERATION_MAX_NODES:
@@ -623,12 +626,12 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
             sols = enumerate_solutions(system, alpha, max_nodes=START_ENUMERATION_MAX_NODES)
             if not sols:
                 raise
-            start = sols[0]
+            start_sets = sols[0].sets
             path.events.append(PathEvent(
                 "start_by_enumeration", alpha, f"SSNM did not converge at alpha_start ({exc}); started from the "
                 f"first of {len(sols)} solutions found by enumeration (follow the others with start_sets=...)",
                 None, {"solutions": [{"sets": x.sets.to_dict(), "states": x.states()} for x in sols]}))
-        ln = ctx.line(canonical_codes(start.sets, system.friction))
+        ln = ctx.line(canonical_codes(start_sets, system.friction))
         y = None  # the branch's point at alpha (formed lazily with the condensed backend)
     status = _run(ctx, path, ln, s, alpha, y)
     return _finish(path, solver, stats0, t0, status)

@@ -88,7 +88,12 @@ def test_schur_complement_matches_solves(fem):
     a, b = CondensedSolver(system, schur=True), CondensedSolver(system, schur=False)
     assert a.condensation == "schur" and b.condensation == "solves"
     assert np.abs(a.S - b.S).max() <= 1e-10 * np.abs(b.S).max()
-    assert a.stats.linear_solves == 0 and b.stats.linear_solves == 2 * system.m
+    # by solves, the loads ride along (w1, w2 = B K^-1 f1,2 cached): 2m + 2 columns, one solve call
+    assert a.stats.linear_solves == 0 and b.stats.linear_solves == 2 * system.m + 2
+    f1, f2 = system.loads_numpy()
+    wb = b.load_data_many([f1, f2])
+    assert b.stats.linear_solves == 2 * system.m + 2  # cached
+    assert np.abs(wb - a.load_data_many([f1, f2])).max() <= 1e-10 * np.abs(wb).max()
     rng = np.random.default_rng(1)
     full = DirNeuSolver(system)
     for _ in range(5):
@@ -153,3 +158,15 @@ def test_plotting_a_multiplier_forms_no_displacement(systems, tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 0
     assert lazy.lazy and solver.stats.linear_solves == solves  # nothing formed
     np.testing.assert_allclose(lazy.lams, eager.ys[:, system.n:], rtol=0, atol=1e-10 * np.abs(ve).max())
+
+
+def test_ssnm_sets_equal_ssnm_from_zero(systems):
+    """The exact method's start (sets of SSNM from 0 in the multipliers, no u) is the start of
+    the seed's SSNM with the J(Z) solver; an SSNM that does not converge gives None."""
+    for system in systems:
+        solver = CondensedSolver(system)
+        for alpha in (0.0, 0.4, 1.0):
+            ref = cfcontact.ssnm(system, alpha, solver=DirNeuSolver(system))
+            Z = solver.ssnm_sets(system.load(alpha), 1e-9, 100)
+            assert Z is not None and Z.states() == ref.sets.states()
+        assert solver.ssnm_sets(system.load(0.5), 1e-300, 1) is None
