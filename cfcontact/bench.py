@@ -8,9 +8,12 @@ Reported per method: linear solves, factorizations (for the condensed backend: f
 of K and dense factorizations separately), wall time, transitions, folds, largest number of
 solutions at one alpha, worst residual of (1)-(3) over the stored points; the speed-up
 seed / exact and whether both give the same sequence of set changes (node, set, kind) with
-transition alphas agreeing within the seed's h_min.  Each method runs ``--repeat`` times
-(default 3, ``--quick``: 1; ``gc.collect()`` before each run, so that the garbage of earlier
-runs is not collected inside a timed one) and the fastest run is reported for both.
+transition alphas agreeing within the seed's h_min.  Timing as :mod:`timeit` does it: each
+method runs at least ``--repeat`` times (default 3, ``--quick``: 1) and until it has run for
+``--min-time`` seconds (default 1; each at most MAX_RUNS times), with a fresh solver,
+``gc.collect()`` before each run and the garbage collector off during it (as timeit does); the fastest run is reported for both methods, and the median run as well (the
+noise of a shared machine only ever adds time, and adds relatively more to a 15 ms run than
+to a 2 s one).
 
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
 nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes), with the demo's loads and
@@ -29,7 +32,7 @@ u from them) and forms the displacements when they are needed.  The worst residu
 solves and dropped), and its time is reported separately (not in the path time).
 
 Run:  cfcontact bench [--quick] [--sizes 1e4,1.2e5,1e6] [--skip-large] [--output DIR]
-      [--part A|B|AB] [--repeat N] [--timeout S]      (or .venv/bin/python demos/bench.py ...)
+      [--part A|B|AB] [--repeat N] [--min-time S] [--timeout S]   (or .venv/bin/python demos/bench.py ...)
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ DEMOS = os.path.join(ROOT, "demos")
 SIZES = (1e4, 1.2e5, 1e6)
 QUICK_SIZES = (2e3, 1e4)
 LARGE = 5e5  # --skip-large drops sizes above this
+MAX_RUNS = 200  # Part A: most runs of one method (--min-time)
 
 
 def demo():
@@ -122,10 +126,34 @@ def compare_paths(seed, exact, friction) -> dict:
             "same_branch_sets": sets_s == sets_e}
 
 
-def part_a(quick=False, frictions=None, log=print, repeat=1) -> list:
-    """Seed vs exact for every F; each method runs ``repeat`` times (fresh solver each time) and
-    its time is the fastest run (the paths are identical; the noise of a shared machine only
-    adds time)."""
+def _timed_runs(run, repeat, min_time):
+    """Call ``run()`` (which returns its own timing tuple) at least ``repeat`` times and until
+    ``min_time`` seconds have passed (at most MAX_RUNS times).  As :mod:`timeit` does, the
+    garbage collector is off during each call (``gc.collect()`` before it): a collection
+    triggered inside a run would traverse every object alive in the process, including the
+    results of earlier runs, and time that instead of the method."""
+    out = []
+    t_start = time.perf_counter()
+    enabled = gc.isenabled()
+    try:
+        while len(out) < max(1, int(repeat)) or (time.perf_counter() - t_start < min_time and len(out) < MAX_RUNS):
+            gc.collect()
+            gc.disable()
+            try:
+                out.append(run())
+            finally:
+                if enabled:
+                    gc.enable()
+    finally:
+        if enabled:
+            gc.enable()
+    return out
+
+
+def part_a(quick=False, frictions=None, log=print, repeat=1, min_time=0.0) -> list:
+    """Seed vs exact for every F; each method runs at least ``repeat`` times and for at least
+    ``min_time`` seconds (fresh solver each time); its time is the fastest run (the paths are
+    identical; the noise of a shared machine only adds time), its median is reported too."""
     import cfcontact
     from cfcontact.condensed import CondensedSolver
     from cfcontact.ssnm import DirNeuSolver
@@ -137,26 +165,33 @@ def part_a(quick=False, frictions=None, log=print, repeat=1) -> list:
         system = dm.build(F, quick=quick)
         t_asm = time.perf_counter() - t0
         # seed: default PETSc backend (fresh solver so its counters are this run's)
-        seed_times, exact_times = [], []
-        for _ in range(max(1, int(repeat))):
-            gc.collect()  # the garbage of earlier runs is not collected inside a timed run
+        last = {}
+
+        def seed_run():
             t0 = time.perf_counter()
-            ssolver = DirNeuSolver(system)
-            sp_ = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="seed", solver=ssolver)
-            seed_times.append(time.perf_counter() - t0)
+            last["ssolver"] = DirNeuSolver(system)
+            last["seed"] = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="seed", solver=last["ssolver"])
+            return time.perf_counter() - t0
+
+        seed_times = _timed_runs(seed_run, repeat, min_time)
+        sp_, ssolver = last["seed"], last["ssolver"]
         t_seed = min(seed_times)
         st = ssolver.stats.as_dict()
         seed = _method_result(sp_, system, ssolver, t_seed, {
             "linear_solves": st["linear_solves"], "factorizations": st["factorizations"],
-            "ssnm_iterations": st["ssnm_iterations"], "wall_times": seed_times})
+            "ssnm_iterations": st["ssnm_iterations"], "wall_times": seed_times,
+            "median_wall_time": float(np.median(seed_times))})
+
         # exact: condensed backend, its construction (K factorization, S) counted in the wall time
-        for _ in range(max(1, int(repeat))):
-            gc.collect()
+        def exact_run():
             t0 = time.perf_counter()
-            csolver = CondensedSolver(system)
+            last["csolver"] = CondensedSolver(system)
             t_setup = time.perf_counter() - t0
-            ep = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=csolver)
-            exact_times.append((time.perf_counter() - t0, t_setup))
+            last["exact"] = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=last["csolver"])
+            return time.perf_counter() - t0, t_setup
+
+        exact_times = _timed_runs(exact_run, repeat, min_time)
+        ep, csolver = last["exact"], last["csolver"]
         t_exact, t_setup = min(exact_times)
         ct = csolver.stats.as_dict()
         exact = _method_result(ep, system, csolver, t_exact, {
@@ -164,30 +199,36 @@ def part_a(quick=False, frictions=None, log=print, repeat=1) -> list:
             "K_factorizations": ct["factorizations"], "dense_factorizations": ct["dense_factorizations"],
             "dense_solves": ct["dense_solves"], "ssnm_iterations": ct["ssnm_iterations"],
             "setup_time": t_setup, "condensation_time": csolver.timings["condensation"],
-            "path_time": t_exact - t_setup, "wall_times": [t for t, _ in exact_times]})
+            "path_time": t_exact - t_setup, "wall_times": [t for t, _ in exact_times],
+            "median_wall_time": float(np.median([t for t, _ in exact_times]))})
         exact["linear_solves_with_verification"] = csolver.stats.linear_solves
         res = {"friction": F, "n": system.n, "m": system.m, "assembly_time": t_asm, "seed": seed, "exact": exact,
-               "speedup": t_seed / max(t_exact, 1e-300), **compare_paths(sp_, ep, F)}
+               "speedup": t_seed / max(t_exact, 1e-300),
+               "speedup_median": seed["median_wall_time"] / max(exact["median_wall_time"], 1e-300),
+               **compare_paths(sp_, ep, F)}
         out.append(res)
-        log(f"  F = {F:g}: seed {t_seed:.2f} s, exact {t_exact:.3f} s, speed-up {res['speedup']:.0f}, "
-            f"same set changes: {res['same_set_changes']}")
+        log(f"  F = {F:g}: seed {t_seed:.2f} s ({len(seed_times)} runs), exact {t_exact:.4f} s ({len(exact_times)} "
+            f"runs), speed-up {res['speedup']:.0f} (medians: {res['speedup_median']:.0f}), same set changes: "
+            f"{res['same_set_changes']}")
     return out
 
 
 def table_a(rows) -> str:
     head = (f"{'F':>5} {'n':>6} {'m':>4} {'method':>6} {'solves':>7} {'K fact.':>7} {'dense f.':>8} "
-            f"{'time [s]':>9} {'trans.':>6} {'folds':>5} {'max sol':>7} {'residual':>9} {'speed-up':>8} "
-            f"{'same seq.':>9} {'max |da|':>9}")
+            f"{'time [s]':>9} {'median':>9} {'runs':>4} {'trans.':>6} {'folds':>5} {'max sol':>7} {'residual':>9} "
+            f"{'speed-up':>8} {'(median)':>8} {'same seq.':>9} {'max |da|':>9}")
     lines = [head, "-" * len(head)]
     for r in rows:
         for name in ("seed", "exact"):
             d = r[name]
             kf = d["factorizations"] if name == "seed" else d["K_factorizations"]
             dense = "-" if name == "seed" else str(d["dense_factorizations"])
-            tail = (f"{r['speedup']:>8.0f} {str(r['same_set_changes']):>9} {r['max_alpha_difference']:>9.1e}"
+            tail = (f"{r['speedup']:>8.0f} {r.get('speedup_median', float('nan')):>8.0f} "
+                    f"{str(r['same_set_changes']):>9} {r['max_alpha_difference']:>9.1e}"
                     if name == "exact" else "")
             lines.append(f"{r['friction']:>5g} {r['n']:>6} {r['m']:>4} {name:>6} {d['linear_solves']:>7} {kf:>7} "
-                         f"{dense:>8} {d['wall_time']:>9.3f} {d['transitions']:>6} {d['folds']:>5} "
+                         f"{dense:>8} {d['wall_time']:>9.4f} {d.get('median_wall_time', float('nan')):>9.4f} "
+                         f"{len(d.get('wall_times', ())):>4} {d['transitions']:>6} {d['folds']:>5} "
                          f"{d['max_multiplicity']:>7} {d['worst_residual']:>9.1e} {tail}".rstrip())
     return "\n".join(lines)
 
@@ -322,8 +363,10 @@ def add_arguments(ap):
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
     ap.add_argument("--part", default="AB", help="A, B or AB (default)")
-    ap.add_argument("--repeat", type=int, help="Part A: run each method this many times and report the fastest "
-                                               "(default 3; --quick: 1)")
+    ap.add_argument("--repeat", type=int, help="Part A: run each method at least this many times and report the "
+                                               "fastest (default 3; --quick: 1)")
+    ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
+                                                   "(default 1; --quick: 0)")
     ap.add_argument("--timeout", type=float, default=4 * 3600.0, help="per-size time limit of Part B [s]")
     ap.add_argument("--petsc-option", action="append", default=[],
                     help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
@@ -345,6 +388,10 @@ def run(args, argv_text="") -> int:
     repeat = repeat if repeat is not None else (1 if args.quick else 3)
     if repeat < 1:
         raise InputError(f"--repeat must be >= 1, got {repeat}")
+    min_time = getattr(args, "min_time", None)
+    min_time = min_time if min_time is not None else (0.0 if args.quick else 1.0)
+    if not (0 <= min_time < math.inf):
+        raise InputError(f"--min-time must be a number of seconds >= 0, got {min_time}")
     dm = demo()
     result = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
                           "loadavg_start": os.getloadavg()},
@@ -360,8 +407,8 @@ def run(args, argv_text="") -> int:
 
     if "A" in part:
         print("Part A: seed vs exact on the main demo" + (" (quick mesh)" if args.quick else ""), flush=True)
-        result["repeat"] = repeat
-        result["part_a"] = part_a(quick=args.quick, repeat=repeat)
+        result["repeat"], result["min_time"] = repeat, min_time
+        result["part_a"] = part_a(quick=args.quick, repeat=repeat, min_time=min_time)
         save()
         print(table_a(result["part_a"]), "\n", flush=True)
     if "B" in part:

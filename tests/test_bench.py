@@ -51,6 +51,12 @@ def test_bench_part_a_fields_and_agreement(bench):
         assert r["seed"]["folds"] == r["exact"]["folds"]
         assert r["seed"]["max_multiplicity"] == r["exact"]["max_multiplicity"]
         assert r["exact"]["linear_solves"] < r["seed"]["linear_solves"]
+        for name in ("seed", "exact"):  # --quick: one run each; the median of one run is that run
+            d = r[name]
+            assert len(d["wall_times"]) >= data["repeat"] == 1
+            assert d["wall_time"] == min(d["wall_times"]) <= d["median_wall_time"]
+        assert r["speedup"] == pytest.approx(r["seed"]["wall_time"] / r["exact"]["wall_time"])
+        assert r["speedup_median"] == pytest.approx(r["seed"]["median_wall_time"] / r["exact"]["median_wall_time"])
 
 
 def test_bench_part_b_fields(bench):
@@ -73,9 +79,34 @@ def test_bench_wrapper_and_bad_options(tmp_path):
     proc = subprocess.run([sys.executable, os.path.join(DEMOS, "bench.py"), "--help"], capture_output=True, text=True,
                           cwd=ROOT, env=env, timeout=120)
     assert proc.returncode == 0 and "--skip-large" in proc.stdout
-    for bad in (["--part", "C"], ["--sizes", "1e4,x"], ["--repeat", "0"]):
+    for bad in (["--part", "C"], ["--sizes", "1e4,x"], ["--repeat", "0"], ["--min-time", "-1"]):
         proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", *bad, "--output", str(tmp_path)],
                               capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
         assert proc.returncode == 2 and "error" in proc.stderr, (bad, proc.stderr)
         assert not (tmp_path / "bench.json").exists()
 
+
+
+def test_timed_runs_repeat_min_time_and_gc():
+    """At least ``repeat`` runs, and more until ``min_time`` has passed; the garbage collector is
+    off inside each run (as timeit does) and on again afterwards."""
+    import gc
+    import time
+
+    from cfcontact.bench import MAX_RUNS, _timed_runs
+
+    states = []
+
+    def run():
+        states.append(gc.isenabled())
+        time.sleep(0.01)
+        return len(states)
+
+    assert gc.isenabled()
+    out = _timed_runs(run, 2, 0.0)
+    assert out == [1, 2] and states == [False, False] and gc.isenabled()
+    states.clear()
+    t0 = time.perf_counter()
+    out = _timed_runs(run, 1, 0.1)  # more runs until 0.1 s have passed (gc.collect() time included)
+    assert time.perf_counter() - t0 >= 0.1 and 2 <= len(out) <= MAX_RUNS
+    assert not any(states) and gc.isenabled()
