@@ -306,18 +306,27 @@ def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
     or vanish there and not decrease in the direction d."""
     vals = ln.values(alpha)
     tv = ln.tol_v(alpha, ctx.rtol)
-    if vals.min(initial=np.inf) < -tv:
-        return False, False
-    zero = (vals <= tv).nonzero()[0]  # the constraints vanishing at alpha: their slopes decide
+    window = ALPHA_WINDOW * (1.0 + abs(alpha))
+    zero = (vals <= tv).nonzero()[0]  # the constraints vanishing at alpha (or negative): their slopes decide
     if not zero.size:
         return True, True
+    vz, sz = vals[zero], ln.slopes[zero]
+    # A value below -tv is negative beyond rounding unless the constraint's own root lies within the
+    # alpha window: a steep constraint (e.g. rho N u of a node that just opened, on a stiff/soft
+    # bimaterial model) evaluated at the transition alpha of another line misses zero by its slope
+    # times the rounding error of that alpha.
+    if (vz < -(tv + np.abs(sz) * window)).any():
+        return False, False
     ts = ln.tol_s(ctx.rtol)
-    window = ALPHA_WINDOW * (1.0 + abs(alpha))
     valid = [True, True]
     # few constraints vanish at once: plain floats are cheaper than array operations here
-    for v, sl in zip(vals[zero].tolist(), ln.slopes[zero].tolist()):
+    for v, sl in zip(vz.tolist(), sz.tolist()):
         for k, d in enumerate((1, -1)):
             dsl = d * sl
+            if v < -tv:  # negative: valid in direction d only if it turns positive within the window
+                if not (dsl > ts and -v <= dsl * window + tv):
+                    valid[k] = False
+                continue
             # A small positive value that reaches zero only beyond a tiny alpha window ahead is a
             # separate, later transition (a near-tie on a fine mesh: the value tolerance is
             # relative to the largest indicator), not a constraint vanishing here.

@@ -476,3 +476,31 @@ def test_exact_resume_bad_input(tmp_path):
     del bad["state"]["visited"]
     with pytest.raises(cfcontact.InputError, match="invalid resume state"):
         cfcontact.trace_path(system, 0.0, 1.0, method="exact", resume=bad)
+
+
+def test_steep_constraint_missing_zero_by_rounding_is_a_tie():
+    """At a transition alpha* computed from one line, a steep constraint of the next line (e.g.
+    rho N u of a node that just opened, on a stiff-on-soft model) misses zero by its slope times
+    the rounding error of alpha*; that is a tie when its own root lies within ALPHA_WINDOW, so
+    the line continues in the direction where the constraint grows.  A value whose root lies
+    further away stays a violation in both directions."""
+    from types import SimpleNamespace
+
+    from cfcontact.exact import ALPHA_WINDOW, OPEN, TIE_RTOL, _Line, _valid_directions, state_constraints
+
+    codes = np.array([OPEN], dtype=np.int8)  # one open node: constraint -a >= 0
+    cidx, csgn, cnode = state_constraints(codes, [0])
+    ctx = SimpleNamespace(rtol=TIE_RTOL)
+    slope_a = -1.6e7  # a(alpha) = a1 + alpha * slope_a, so -a grows with alpha
+
+    def line(a_half):  # a(0.5) = a_half
+        a1 = a_half - 0.5 * slope_a
+        g1, g2 = np.array([a1, 0.0, 0.0]), np.array([a1 + slope_a, 0.0, 0.0])
+        return _Line(codes, None, np.zeros(2), np.zeros(2), g1, g2, cidx, csgn, cnode, None)
+
+    ln = line(1e-3)  # -a(0.5) = -1e-3: beyond tol_v (8e-4) but its root is 6e-11 ahead
+    assert -ln.values(0.5)[0] > ln.tol_v(0.5, TIE_RTOL)
+    assert 1e-3 / 1.6e7 < ALPHA_WINDOW
+    assert _valid_directions(ctx, ln, 0.5) == (True, False)
+    assert _valid_directions(ctx, line(1.0), 0.5) == (False, False)  # root 6e-8 ahead: a violation
+    assert _valid_directions(ctx, line(-1.0), 0.5) == (True, True)  # positive: consistent both ways
