@@ -404,18 +404,29 @@ class _FemModel:
         bs = self.bs
         return (self.block_node[rows // bs], rows % bs, self.block_node[cols // bs], cols % bs, vals)
 
-    def load_forms(self, tag_numbers, body_numbers):
-        """One linear form with a Constant per traction tag and per body force domain."""
+    def load_forms(self, traction_keys, body_numbers):
+        """One linear form with a Constant per traction (tag, window) and per body force domain.
+        A window (x0, x1, y0, y1) restricts the traction to the part of the piece inside it (the
+        integrand is multiplied by its indicator; exact when the window ends on mesh nodes)."""
         V = self.V
         v = ufl.TestFunction(V)
         ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.ft)
         dx = ufl.Measure("dx", domain=self.mesh, subdomain_data=self.ct)
+        X = ufl.SpatialCoordinate(self.mesh)
         consts = {}
         L = None
-        for tag in tag_numbers:
+        for tag, window in traction_keys:
             c = compat.constant(self.mesh, np.zeros(2))
-            consts[("t", tag)] = c
-            term = ufl.dot(c, v) * ds(tag)
+            consts[("t", (tag, window))] = c
+            integrand = ufl.dot(c, v)
+            if window is not None:
+                # the bounds are a Constant too (infinite ends compare as such), so that the compiled
+                # form depends only on how many windows there are, not on where they lie
+                w = compat.constant(self.mesh, np.asarray(window, dtype=float))
+                inside = ufl.And(ufl.And(ufl.ge(X[0], w[0]), ufl.le(X[0], w[1])),
+                                 ufl.And(ufl.ge(X[1], w[2]), ufl.le(X[1], w[3])))
+                integrand = ufl.conditional(inside, integrand, 0.0)
+            term = integrand * ds(tag)
             L = term if L is None else L + term
         for body in body_numbers:
             c = compat.constant(self.mesh, np.zeros(2))
@@ -457,15 +468,73 @@ def full_stiffness(model_or_path=None, *, E=2.1e11, nu=0.3, plane="strain", comm
     return Ks, fem.points.copy(), fem.cells.copy(), fem.cell_body.copy()
 
 
+#: keys of a windowed traction (a "patch"): {"value": (tx, ty), "x": (x0, x1), "y": (y0, y1)}
+PATCH_KEYS = ("value", "x", "y")
+
+
+def _window(value, what):
+    """(lo, hi) with lo < hi (infinite ends allowed)."""
+    try:
+        lo, hi = (float(t) for t in value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be an interval (lo, hi) of two numbers, got {value!r}") from None
+    if not (lo < hi) or np.isnan(lo) or np.isnan(hi):
+        raise InputError(f"{what} must be an interval (lo, hi) with lo < hi, got {value!r}")
+    return lo, hi
+
+
+def _is_vector_like(value):
+    try:
+        return np.asarray(value, dtype=float).ndim == 1
+    except (TypeError, ValueError):
+        return False
+
+
+def _traction_terms(value, what):
+    """One tag's traction -> [(window, vector)]; window None (the whole piece) or
+    (x0, x1, y0, y1): the part of the piece with x0 <= x <= x1 and y0 <= y <= y1."""
+    if isinstance(value, Mapping):
+        unknown = sorted(set(map(str, value)) - set(PATCH_KEYS))
+        if unknown or "value" not in value:
+            raise InputError(f"{what}: a windowed traction is a dict with keys 'value' (tx, ty) and 'x' and/or 'y' "
+                             f"(intervals), got keys {sorted(map(str, value))}")
+        if "x" not in value and "y" not in value:
+            raise InputError(f"{what}: a windowed traction needs 'x' = (x0, x1) and/or 'y' = (y0, y1)")
+        x = _window(value["x"], f"{what}['x']") if "x" in value else (-np.inf, np.inf)
+        y = _window(value["y"], f"{what}['y']") if "y" in value else (-np.inf, np.inf)
+        return [(x + y, _vector2(value["value"], f"{what}['value']"))]
+    if isinstance(value, (list, tuple)) and value and not _is_vector_like(value):
+        return [t for k, item in enumerate(value) for t in _traction_terms(item, f"{what}[{k}]")]
+    return [(None, _vector2(value, what))]
+
+
 def _parse_tractions(tractions, groups, what):
+    """{tag: (tx, ty) | {"value": ..., "x": ..., "y": ...} | [several]} -> {(tag, window): vector}."""
     out = {}
     if tractions is None:
         return out
     if not isinstance(tractions, Mapping):
         raise InputError(f"{what} must be a dict {{boundary tag: (tx, ty)}}, got {type(tractions).__name__}")
-    for spec, vec in tractions.items():
+    for spec, value in tractions.items():
         tag = _resolve_tag(spec, groups, 1, what)
-        out[tag] = out.get(tag, 0.0) + _vector2(vec, f"{what}[{spec!r}]")
+        for window, vec in _traction_terms(value, f"{what}[{spec!r}]"):
+            out[(tag, window)] = out.get((tag, window), 0.0) + vec
+    return out
+
+
+def _tractions_meta(trac, label):
+    """{label: [tx, ty]} for uniform tractions; a list of {"value", "x", "y"} items for a tag with windows."""
+    out = {}
+    for (tag, window), vec in trac.items():
+        if window is None and not any(t == tag and w is not None for t, w in trac):
+            out[label[tag]] = vec.tolist()
+            continue
+        item = {"value": vec.tolist()}
+        if window is not None:
+            for key, lo, hi in (("x", window[0], window[1]), ("y", window[2], window[3])):
+                if np.isfinite(lo) or np.isfinite(hi):
+                    item[key] = [lo, hi]
+        out.setdefault(label[tag], []).append(item)
     return out
 
 
@@ -510,7 +579,11 @@ def assemble_contact_system(
     plane : ``"strain"`` (default) or ``"stress"`` (thickness 1)
     clamp : boundary pieces (1-D group names or numbers) where u = 0 (both components)
     tractions1, tractions2 : ``{boundary piece: (tx, ty)}`` surface tractions of the
-        load vectors f1 and f2 (force per unit length)
+        load vectors f1 and f2 (force per unit length).  A piece's value may instead be a
+        windowed traction ``{"value": (tx, ty), "x": (x0, x1), "y": (y0, y1)}`` (either window
+        may be left out) acting only on the part of the piece with x0 <= x <= x1 and
+        y0 <= y <= y1 (mesh coordinates; exact when the window ends on mesh nodes), or a list
+        of such values (summed), e.g. ``{"top1": [(0, -1e6), {"value": (0, -5e6), "x": (2.2, 2.3)}]}``
     body_force1, body_force2 : body forces of f1 and f2 (force per unit area): None,
         one vector ``(bx, by)`` on all bodies, or ``{body name/number: (bx, by)}``
     friction : Coulomb coefficient F (scalar or one per contact node)
@@ -577,9 +650,10 @@ def assemble_contact_system(
     K = linalg.mat_from_triplets(np.concatenate([r, c]), np.concatenate([c, r]), np.concatenate([v, v]), (n, n), comm)
 
     # ----------------------------------------------------------------- loads
-    tag_numbers = sorted(set(trac[0]) | set(trac[1]))
+    traction_keys = sorted(set(trac[0]) | set(trac[1]), key=lambda k: (k[0], k[1] is not None, k[1] or ()))
+    tag_numbers = sorted({tag for tag, _ in traction_keys})
     body_numbers = sorted(set(bforce[0]) | set(bforce[1]), key=lambda b: -1 if b is None else b)
-    compiled, consts = fem.load_forms(tag_numbers, body_numbers)
+    compiled, consts = fem.load_forms(traction_keys, body_numbers)
     loads = []
     for k in range(2):
         values = {("t", t): vec for t, vec in trac[k].items()}
@@ -643,8 +717,8 @@ def assemble_contact_system(
         "nu": _material_meta(nu, groups),
         "plane": plane,
         "clamp": [label[t] for t in clamp_tags],
-        "tractions1": {label[t]: vec.tolist() for t, vec in trac[0].items()},
-        "tractions2": {label[t]: vec.tolist() for t, vec in trac[1].items()},
+        "tractions1": _tractions_meta(trac[0], label),
+        "tractions2": _tractions_meta(trac[1], label),
         "body_force1": {str(b): vec.tolist() for b, vec in bforce[0].items()},
         "body_force2": {str(b): vec.tolist() for b, vec in bforce[1].items()},
         "rigid_foundation": rigid,

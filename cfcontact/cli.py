@@ -172,7 +172,7 @@ SCHEMA = {
 TOP_LEVEL = ("title", *SCHEMA)
 PHYSICS_SECTIONS = ("geometry", "material", "contact", "loads", "path")
 _TYPE_NAMES = {"int": "an integer", "float": "a number", "str": "a string", "bool": "a boolean (true/false)",
-               "tags": "a list of tags (names or numbers)", "tractions": "a table {tag = [tx, ty]}",
+               "tags": "a list of tags (names or numbers)", "tractions": "a table {tag = [tx, ty] or windowed tractions}",
                "body_force": "[bx, by] or a table {body = [bx, by]}", "formats": 'a list of "png"/"pdf"',
                "component": '["lam_n", i], "lam_n:i" or an integer', "zoom": "[alpha_lo, alpha_hi] (+ [v_lo, v_hi])",
                "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them",
@@ -202,6 +202,28 @@ def _vec2(value, where):
     if not all(math.isfinite(x) for x in value):
         raise CaseError(f"{where}: expected finite numbers, got {value!r}")
     return [float(x) for x in value]
+
+
+_PATCH_FORM = "{value = [tx, ty], x = [x0, x1]} (and/or y = [y0, y1])"
+
+
+def _traction(value, where):
+    """[tx, ty] (the whole piece), a windowed traction {value, x, y}, or a list of these."""
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - {"value", "x", "y"})
+        if unknown or "value" not in value or not ({"x", "y"} & set(value)):
+            raise CaseError(f"{where}: a windowed traction is {_PATCH_FORM}, got keys {sorted(value)}")
+        out = {"value": _vec2(value["value"], f"{where}.value")}
+        for key in ("x", "y"):
+            if key in value:
+                lo, hi = _vec2(value[key], f"{where}.{key}")
+                if not lo < hi:
+                    raise CaseError(f"{where}.{key}: expected an interval [lo, hi] with lo < hi, got {value[key]!r}")
+                out[key] = [lo, hi]
+        return out
+    if isinstance(value, list) and value and all(isinstance(v, (dict, list)) for v in value):
+        return [_traction(v, f"{where}[{k}]") for k, v in enumerate(value)]
+    return _vec2(value, where)
 
 
 def _check_value(typ, value, where):
@@ -241,7 +263,7 @@ def _check_value(typ, value, where):
     if typ == "tractions":
         if not isinstance(value, dict):
             raise bad
-        return {k: _vec2(v, f"{where}.{k}") for k, v in value.items()}
+        return {k: _traction(v, f"{where}.{k}") for k, v in value.items()}
     if typ == "body_force":
         if isinstance(value, dict):
             return {k: _vec2(v, f"{where}.{k}") for k, v in value.items()}

@@ -13,6 +13,8 @@ import os
 import sys
 from types import MappingProxyType
 
+from cfcontact.errors import InputError
+
 __all__ = ["two_blocks", "arc_on_block", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTIONS2"]
 
 #: Default surface tractions (Pa = N/m^2, force per unit length in 2-D) of the load f1:
@@ -58,6 +60,11 @@ def _rotate_loads(loads, angle, kind):
         return _rotate(loads, angle)
     if not hasattr(loads, "items"):
         return loads
+    for k, v in loads.items():
+        if kind == "traction" and (hasattr(v, "items") or (isinstance(v, (list, tuple)) and v and not all(
+                isinstance(t, (int, float)) for t in v))):
+            raise InputError(f"traction {k!r}: windowed tractions ({v!r}) cannot be combined with angle={angle:g} "
+                             f"(their 'x'/'y' windows would be in the rotated frame); use angle=0 or uniform tractions")
     return {k: _rotate(v, angle) for k, v in loads.items()}
 
 
@@ -96,7 +103,9 @@ def two_blocks(
     dicts with one value per body, e.g. ``E={"body1": 2.1e11, "body2": 2.1e8}``.
 
     Loads: ``tractions1`` / ``tractions2`` (dicts ``{boundary piece: (tx, ty)}``,
-    pieces ``top1, right1, left1, bottom2, right2, left2``) and ``body_force1`` /
+    pieces ``top1, right1, left1, bottom2, right2, left2``; a value may also be a windowed
+    traction ``{"value": (tx, ty), "x": (x0, x1)}`` or a list, see
+    :func:`cfcontact.assembly.assemble_contact_system`) and ``body_force1`` /
     ``body_force2`` define f1 and f2.  Defaults :data:`DEFAULT_TRACTIONS1`
     (``top1``: (2e7, -1e8)) and :data:`DEFAULT_TRACTIONS2` (``top1``: (1e8, -2e7));
     pass ``{}`` for no traction.  Load vectors are given in the frame of the

@@ -240,6 +240,50 @@ def test_total_traction_load(cell):
     assert np.all(np.isclose(pts[f1 != 0, 0], 3.0))
 
 
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_windowed_traction_load(cell):
+    """A traction on a window of a piece equals the hand-made nodal load (value x edge length / 2
+    on both ends of every edge inside the window); windows covering the piece add up to the
+    uniform traction; the metadata lists the windows."""
+    t, q = np.array([2.0e5, -3.0e5]), np.array([-1.0e5, 4.0e5])
+    S = two_blocks(nx=6, ny=3, length=3.0, height=1.0, cell=cell,
+                   tractions1={"top1": {"value": t, "x": (1.5, 2.5)}, "right2": {"value": q, "y": (-0.6667, 0.0)}},
+                   tractions2={"top1": [{"value": t, "x": (0.0, 1.5)}, {"value": t, "x": (1.5, 3.0)}]})
+    U = two_blocks(nx=6, ny=3, length=3.0, height=1.0, cell=cell, tractions1={"top1": t}, tractions2={})
+    f1, f2 = S.loads_numpy()
+    g = S.geometry
+    ref = np.zeros(S.n)
+    for y_edge, x_edge, lo, hi, val in ((1.0, None, 1.5, 2.5, t), (None, 3.0, -0.6667, 0.0, q)):
+        P = g.points
+        on = np.flatnonzero(np.isclose(P[:, 1], y_edge) if y_edge is not None else np.isclose(P[:, 0], x_edge))
+        if x_edge is not None:  # right2: the nodes of body 2 only (y <= 0)
+            on = on[np.isin(on, np.unique(g.cells[g.cell_body == 2]))]
+        along = P[on, 0] if y_edge is not None else P[on, 1]
+        on = on[np.argsort(along)]
+        along = np.sort(along)
+        for a, b, sa, sb in zip(on[:-1], on[1:], along[:-1], along[1:]):
+            if sa >= lo - 1e-9 and sb <= hi + 1e-9:  # (gmsh coordinates: 1.5 may be 1.5 - 1e-16)
+                for node in (a, b):
+                    for c in (0, 1):
+                        ref[(g.dof_node == node) & (g.dof_comp == c)] += 0.5 * val[c] * (sb - sa)
+    np.testing.assert_allclose(f1, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+    np.testing.assert_allclose(f2, U.loads_numpy()[0], rtol=0, atol=1e-9 * np.abs(f2).max())
+    assert S.info["tractions1"]["top1=12"] == [{"value": t.tolist(), "x": [1.5, 2.5]}]
+    assert S.info["tractions1"]["right2=23"] == [{"value": q.tolist(), "y": [-0.6667, 0.0]}]
+
+
+def test_windowed_traction_errors():
+    for bad, match in (({"top1": {"value": (1.0, 0.0)}}, "needs 'x'"),
+                       ({"top1": {"value": (1.0, 0.0), "x": (2.0, 1.0)}}, "lo < hi"),
+                       ({"top1": {"value": (1.0, 0.0), "z": (0.0, 1.0)}}, "keys"),
+                       ({"top1": {"x": (0.0, 1.0)}}, "keys"),
+                       ({"top1": [{"value": (1.0, 0.0), "x": (0.0, 1.0)}, (1.0, 2.0, 3.0)]}, r"\[1\].*2-vector")):
+        with pytest.raises(InputError, match=match):
+            two_blocks(nx=2, ny=1, tractions1=bad)
+    with pytest.raises(InputError, match="angle"):
+        two_blocks(nx=2, ny=1, angle=30.0, tractions1={"top1": {"value": (1.0, 0.0), "x": (0.0, 1.0)}})
+
+
 def test_body_force_load():
     b = np.array([2.0e5, -3.0e5])
     S = two_blocks(nx=6, ny=3, length=3.0, height=1.0, tractions1={}, tractions2={},

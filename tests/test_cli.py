@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+import cfcontact
 from cfcontact import cli
 from cfcontact.path import SolutionPath
 
@@ -187,6 +188,10 @@ BAD = [
      ["[material] nu", "body3", "body2=2"]),
     ("material bad value", '[geometry]\nkind = "two_blocks"\n[material]\nnu = {body1 = 0.3, body2 = 0.7}\n',
      ["nu.body2", "0.7", "(-1, 0.5)"]),
+    ("window bad key", '[geometry]\nkind = "two_blocks"\n[loads.f1]\ntop1 = {value = [0, -1], x = [1, 2], z = 1}\n',
+     ["[loads] f1.top1", "value", "z"]),
+    ("window empty", '[geometry]\nkind = "two_blocks"\n[loads.f1]\ntop1 = [{value = [0, -1], x = [2, 1]}]\n',
+     ["[loads] f1.top1[0].x", "lo < hi"]),
     ("unclamped body", '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[loads]\nclamp = ["left1"]\n',
      ["body 2", "Dirichlet"]),
 ]
@@ -495,3 +500,17 @@ def test_exact_periodic_checkpoints_do_not_change_the_path(tmp_path, exact_run, 
     assert len(saves) >= len(ref.transitions) and set(saves) == {"checkpoint"}
     _same_exact_result(str(tmp_path / "case_out"), exact_run[1])
     assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+
+
+def test_windowed_tractions_in_a_case_file(tmp_path):
+    """[loads.f1] with a uniform and a windowed traction on one piece (an array of inline tables)
+    gives the library's load vectors."""
+    case = _write(tmp_path, '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\n[loads.f1]\n'
+                            'top1 = [[0.0, -1.0e6], {value = [2.0e5, -3.0e5], x = [1.5, 2.5]}]\n'
+                            '[loads.f2]\nbottom2 = {value = [1.0e5, 0.0], x = [0.0, 1.0]}\n')
+    system = cli.build_system(cli.load_case(case))
+    ref = cfcontact.two_blocks(nx=6, ny=2, tractions1={"top1": [(0.0, -1.0e6), {"value": (2.0e5, -3.0e5), "x": (1.5, 2.5)}]},
+                               tractions2={"bottom2": {"value": (1.0e5, 0.0), "x": (0.0, 1.0)}})
+    for a, b in zip(system.loads_numpy(), ref.loads_numpy()):
+        assert np.abs(a).max() > 0 and np.array_equal(a, b)
+    assert system.info["tractions1"]["top1=12"][1] == {"value": [2.0e5, -3.0e5], "x": [1.5, 2.5]}
