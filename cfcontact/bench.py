@@ -1,7 +1,8 @@
 """Benchmarks of cfcontact's path following (see docs/bench.md for measured numbers).
 
 Part A -- seed vs exact on the main demo (``demos/main.py``: ``build(F)`` for every F in
-``DEMO_FRICTIONS``).  The seed method runs with the default PETSc backend
+``DEMO_FRICTIONS``) and on the two steel blocks of :data:`BLOCKS_MODEL` (a longer path: every
+contact node works).  The seed method runs with the default PETSc backend
 (:class:`cfcontact.DirNeuSolver`: one factorization of J(Z) per branch), the exact method with
 :class:`cfcontact.condensed.CondensedSolver` (K factored once, a dense system of size <= 2m per branch).
 Reported per method: linear solves, factorizations (for the condensed backend: factorizations
@@ -11,13 +12,13 @@ seed / exact and whether both give the same sequence of set changes (node, set, 
 transition alphas agreeing within the seed's h_min.  Timing as :mod:`timeit` does it: each
 method runs at least ``--repeat`` times (default 3, ``--quick``: 1) and until it has run for
 ``--min-time`` seconds (default 1; each at most MAX_RUNS times), with a fresh solver,
-``gc.collect()`` before each run and the garbage collector off during it (as timeit does); the fastest run is reported for both methods, and the median run as well (the
-noise of a shared machine only ever adds time, and adds relatively more to a 15 ms run than
-to a 2 s one).
+``gc.collect()`` before each run and the garbage collector off during it (as timeit does);
+the fastest run is reported for both methods, and the median run as well (the noise of a
+shared machine only ever adds time, and adds relatively more to a 15 ms run than to a 2 s one).
 
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
-nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes), with the demo's loads and
-its largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
+nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two steel blocks
+(:func:`build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
 ``ru_maxrss`` of that process) and reports the time split
 
     assembly (two_blocks) | factorization of K (PETSc log: MatLUFactorSym + MatLUFactorNum) |
@@ -59,6 +60,26 @@ SIZES = (1e4, 1.2e5, 1e6)
 QUICK_SIZES = (2e3, 1e4)
 LARGE = 5e5  # --skip-large drops sizes above this
 MAX_RUNS = 200  # Part A: most runs of one method (--min-time)
+
+#: The second model of Part A and the model of Part B: two steel blocks (body 2 half as high as
+#: body 1, quadrilaterals, clamped on their left edges; n = 1320, m = 30 on 30 x 10 cells per
+#: block) with the loads of the earlier main demo.  All its contact nodes work along the path
+#: (F = 30: 59 transitions, 4 folds, 5 solutions), where the main demo's path moves a few nodes
+#: near the ends of the interface (5 to 10 transitions): the speed-up of the exact method grows
+#: with the number of transitions, since its set-up (one factorization of K and S) is paid once.
+BLOCKS_MODEL = dict(height=1.0, height2=0.5, length=3.0)
+BLOCKS_F1 = {"top1": (-5.734e7, 3.658e6), "right1": (3.910e7, -8.724e7), "bottom2": (1.877e8, -1.500e6)}
+BLOCKS_F2 = {"top1": (1.0e8, 0.0), "right2": (-5.807e7, 1.510e3), "bottom2": (-1.045e8, 1.450e8)}
+
+
+def build_blocks(friction, nx=30, ny=10, quick=False):
+    """The two steel blocks (BLOCKS_MODEL, BLOCKS_F1, BLOCKS_F2); ``quick``: 12 x 4 cells per block."""
+    import cfcontact
+
+    if quick:
+        nx, ny = 12, 4
+    return cfcontact.two_blocks(nx=nx, ny=ny, friction=friction, tractions1=BLOCKS_F1, tractions2=BLOCKS_F2,
+                                **BLOCKS_MODEL)
 
 
 def demo():
@@ -150,19 +171,31 @@ def _timed_runs(run, repeat, min_time):
     return out
 
 
-def part_a(quick=False, frictions=None, log=print, repeat=1, min_time=0.0) -> list:
-    """Seed vs exact for every F; each method runs at least ``repeat`` times and for at least
-    ``min_time`` seconds (fresh solver each time); its time is the fastest run (the paths are
-    identical; the noise of a shared machine only adds time), its median is reported too."""
+def part_a(quick=False, frictions=None, log=print, repeat=1, min_time=0.0, cases=("demo", "blocks")) -> list:
+    """Seed vs exact for every F on the main demo ("demo") and on the two steel blocks ("blocks",
+    :func:`build_blocks`; ``quick``: a coarse mesh of them); each method runs at least ``repeat``
+    times and for at least ``min_time`` seconds (fresh solver each time); its time is the fastest
+    run (the paths are identical; the noise of a shared machine only adds time), its median is
+    reported too."""
+    dm = demo()
+    builders = {"demo": dm.build, "blocks": lambda F: build_blocks(F, quick=quick)}
+    unknown = [c for c in cases if c not in builders]
+    if unknown:
+        raise InputError(f"unknown Part A case(s) {unknown}; valid: {sorted(builders)}")
+    return [row for case in cases for row in _part_a_case(case, builders[case], frictions or dm.DEMO_FRICTIONS,
+                                                          log, repeat, min_time)]
+
+
+def _part_a_case(case, build, frictions, log, repeat, min_time) -> list:
     import cfcontact
     from cfcontact.condensed import CondensedSolver
     from cfcontact.ssnm import DirNeuSolver
 
     dm = demo()
     out = []
-    for F in (frictions or dm.DEMO_FRICTIONS):
+    for F in frictions:
         t0 = time.perf_counter()
-        system = dm.build(F, quick=quick)
+        system = build(F)
         t_asm = time.perf_counter() - t0
         # seed: default PETSc backend (fresh solver so its counters are this run's)
         last = {}
@@ -202,19 +235,20 @@ def part_a(quick=False, frictions=None, log=print, repeat=1, min_time=0.0) -> li
             "path_time": t_exact - t_setup, "wall_times": [t for t, _ in exact_times],
             "median_wall_time": float(np.median([t for t, _ in exact_times]))})
         exact["linear_solves_with_verification"] = csolver.stats.linear_solves
-        res = {"friction": F, "n": system.n, "m": system.m, "assembly_time": t_asm, "seed": seed, "exact": exact,
+        res = {"case": case, "friction": F, "n": system.n, "m": system.m, "assembly_time": t_asm, "seed": seed,
+               "exact": exact,
                "speedup": t_seed / max(t_exact, 1e-300),
                "speedup_median": seed["median_wall_time"] / max(exact["median_wall_time"], 1e-300),
                **compare_paths(sp_, ep, F)}
         out.append(res)
-        log(f"  F = {F:g}: seed {t_seed:.2f} s ({len(seed_times)} runs), exact {t_exact:.4f} s ({len(exact_times)} "
+        log(f"  {case}, F = {F:g}: seed {t_seed:.2f} s ({len(seed_times)} runs), exact {t_exact:.4f} s ({len(exact_times)} "
             f"runs), speed-up {res['speedup']:.0f} (medians: {res['speedup_median']:.0f}), same set changes: "
             f"{res['same_set_changes']}")
     return out
 
 
 def table_a(rows) -> str:
-    head = (f"{'F':>5} {'n':>6} {'m':>4} {'method':>6} {'solves':>7} {'K fact.':>7} {'dense f.':>8} "
+    head = (f"{'case':>6} {'F':>5} {'n':>6} {'m':>4} {'method':>6} {'solves':>7} {'K fact.':>7} {'dense f.':>8} "
             f"{'time [s]':>9} {'median':>9} {'runs':>4} {'trans.':>6} {'folds':>5} {'max sol':>7} {'residual':>9} "
             f"{'speed-up':>8} {'(median)':>8} {'same seq.':>9} {'max |da|':>9}")
     lines = [head, "-" * len(head)]
@@ -226,7 +260,7 @@ def table_a(rows) -> str:
             tail = (f"{r['speedup']:>8.0f} {r.get('speedup_median', float('nan')):>8.0f} "
                     f"{str(r['same_set_changes']):>9} {r['max_alpha_difference']:>9.1e}"
                     if name == "exact" else "")
-            lines.append(f"{r['friction']:>5g} {r['n']:>6} {r['m']:>4} {name:>6} {d['linear_solves']:>7} {kf:>7} "
+            lines.append(f"{r.get('case', ''):>6} {r['friction']:>5g} {r['n']:>6} {r['m']:>4} {name:>6} {d['linear_solves']:>7} {kf:>7} "
                          f"{dense:>8} {d['wall_time']:>9.4f} {d.get('median_wall_time', float('nan')):>9.4f} "
                          f"{len(d.get('wall_times', ())):>4} {d['transitions']:>6} {d['folds']:>5} "
                          f"{d['max_multiplicity']:>7} {d['worst_residual']:>9.1e} {tail}".rstrip())
@@ -251,8 +285,7 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
         print("BENCH-PARTIAL " + json.dumps(res), flush=True)
 
     t0 = time.perf_counter()
-    system = cfcontact.two_blocks(nx=nx, ny=ny, friction=friction, tractions1=dm.DEMO_F1, tractions2=dm.DEMO_F2,
-                                  **dm.DEMO_MODEL)
+    system = build_blocks(friction, nx=nx, ny=ny)
     res.update(n=system.n, m=system.m, assembly_time=time.perf_counter() - t0, rss_after_assembly_gib=peak_rss_gib(),
                stage="factorization")
     dump()
@@ -396,7 +429,9 @@ def run(args, argv_text="") -> int:
     result = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
                           "loadavg_start": os.getloadavg()},
               "demo": {"model": dm.DEMO_MODEL, "f1": dm.DEMO_F1, "f2": dm.DEMO_F2,
+                       "body_force1": dm.DEMO_BODY_FORCE1, "body_force2": dm.DEMO_BODY_FORCE2,
                        "frictions": list(dm.DEMO_FRICTIONS), "alpha": list(dm.DEMO_ALPHA)},
+              "blocks": {"model": BLOCKS_MODEL, "f1": BLOCKS_F1, "f2": BLOCKS_F2},
               "quick": bool(args.quick), "command": argv_text}
     os.makedirs(args.output, exist_ok=True)
     jpath = os.path.join(args.output, "bench.json")
@@ -406,7 +441,8 @@ def run(args, argv_text="") -> int:
             json.dump(result, fh, indent=1, default=float)
 
     if "A" in part:
-        print("Part A: seed vs exact on the main demo" + (" (quick mesh)" if args.quick else ""), flush=True)
+        print("Part A: seed vs exact on the main demo and on the two steel blocks"
+              + (" (coarse mesh of the blocks)" if args.quick else ""), flush=True)
         result["repeat"], result["min_time"] = repeat, min_time
         result["part_a"] = part_a(quick=args.quick, repeat=repeat, min_time=min_time)
         save()

@@ -1347,8 +1347,9 @@ def cmd_bench(args):
 def _setup_bench(sub, common):
     p = sub.add_parser("bench", parents=[common], help="benchmark: seed vs exact on the main demo, exact method "
                                                        "on refined meshes",
-                       description="Part A: seed vs exact method on the main demo (demos/main.py). Part B: the "
-                                   "exact method on refined two-block meshes (time split, peak memory). Prints "
+                       description="Part A: seed vs exact method on the main demo (demos/main.py) and on two "
+                                   "steel blocks. Part B: the exact method on refined meshes of the two steel "
+                                   "blocks (time split, peak memory). Prints "
                                    "both tables and writes <output>/bench.json. See docs/bench.md.")
     from cfcontact.bench import add_arguments
 

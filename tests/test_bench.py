@@ -32,7 +32,7 @@ def test_bench_part_a_fields_and_agreement(bench):
     import main as demo_main  # the demo's constants (the lead tunes them)
 
     rows = data["part_a"]
-    assert [r["friction"] for r in rows] == list(demo_main.DEMO_FRICTIONS)
+    assert [(r["case"], r["friction"]) for r in rows] == [(c, F) for c in ("demo", "blocks") for F in demo_main.DEMO_FRICTIONS]
     for r in rows:
         for key in ("n", "m", "speedup", "same_set_changes", "max_alpha_difference", "alphas_within_h_min", "h_min"):
             assert key in r, key

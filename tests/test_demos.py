@@ -1,11 +1,10 @@
-"""The main demo runs as a test (coarse mesh) and checks its numbers."""
+"""The main demo runs as a test (its own model, n = 1320, m = 30) and checks its numbers."""
 
 import json
 import os
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -16,28 +15,45 @@ sys.path.pop(0)
 
 
 @pytest.fixture(scope="module")
-def quick_results(tmp_path_factory):
+def results(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo")
-    results = demo.run(quick=True, output=str(out), render=False, log=lambda *a: None)
-    return out, {r["friction"]: r for r in results}
+    res = demo.run(output=str(out), render=False, log=lambda *a: None)
+    return out, {r["friction"]: r for r in res}
 
 
-def test_small_friction_single_valued_transversal_only(quick_results):
-    _, res = quick_results
+def test_default_model_size(results):
+    _, res = results
+    for r in res.values():
+        assert (r["n"], r["m"]) == (1320, 30) and r["method"] == "seed"
+
+
+def test_small_friction_single_valued_transversal_only(results):
+    import cfcontact
+
+    out, res = results
     r = res[0.1]
-    assert r["status"] == "completed" and r["folds"] == 0 and r["transitions"] > 0
+    assert r["status"] == "completed" and r["folds"] == 0 and r["transitions"] == 10
     assert r["max_multiplicity"] == 1
+    path = cfcontact.SolutionPath.load(out / "path_F0.1")
+    assert {t.kind for t in path.transitions} == {"transversal"}
 
 
-def test_large_friction_folds_and_multiple_solutions(quick_results):
-    _, res = quick_results
+def test_friction_0_6_three_solutions(results):
+    """The seed's F = 0.6: two folds, three solutions on an alpha interval."""
+    _, res = results
+    r = res[0.6]
+    assert r["status"] == "completed" and r["folds"] == 2 and r["max_multiplicity"] == 3
+    assert 0.7912 < r["alpha_of_max"] < 0.7940  # the three-solution interval [0.79125, 0.79394]
+
+
+def test_large_friction_folds_and_multiple_solutions(results):
+    _, res = results
     r = res[30.0]
-    assert r["status"] == "completed"
-    assert r["folds"] == 2 and r["max_multiplicity"] == 3
+    assert r["status"] == "completed" and r["folds"] == 5 and r["max_multiplicity"] == 6
 
 
-def test_every_point_verifies_and_outputs_written(quick_results):
-    out, res = quick_results
+def test_every_point_verifies_and_outputs_written(results):
+    out, res = results
     for r in res.values():
         assert r["worst_residual"] <= 1e-8
         assert os.path.getsize(out / f"path_F{r['friction']:g}.png") > 1000
@@ -47,32 +63,57 @@ def test_every_point_verifies_and_outputs_written(quick_results):
     assert [s["friction"] for s in summary] == [0.1, 0.6, 30.0]
 
 
-def test_multiplicity_matches_enumeration_free_check(quick_results):
-    """Every solution the path reports at the alpha of largest multiplicity solves (1)-(3)."""
+@pytest.mark.parametrize("F", [0.6, 30.0])
+def test_solutions_at_largest_multiplicity_verify_and_differ(results, F):
+    """Every solution the path reports at the alpha of largest multiplicity solves (1)-(3), and
+    they are distinct."""
     import cfcontact
 
-    out, res = quick_results
-    r = res[30.0]
-    path = cfcontact.SolutionPath.load(out / "path_F30")
-    system = demo.build(30.0, quick=True)
+    out, res = results
+    r = res[F]
+    path = cfcontact.SolutionPath.load(out / f"path_F{F:g}")
+    system = demo.build(F)
     sols = path.solutions_at(r["alpha_of_max"])
-    assert len(sols) == 3
+    assert len(sols) == r["max_multiplicity"]
     for s in sols:
         assert cfcontact.verify(system, s, r["alpha_of_max"]).ok(1e-8)
-    # distinct solutions
-    ys = np.array([s.y for s in sols])
-    assert np.linalg.matrix_rank(ys - ys[0], tol=1e-9 * np.abs(ys).max()) == 2
+    states = {tuple(s.states()) for s in sols}
+    assert len(states) == len(sols)
+
+
+def test_exact_method_gives_the_same_paths(results):
+    """The exact method traces the demo's paths through the same set changes (node, set, kind),
+    with transition alphas within the seed's h_min."""
+    import cfcontact
+
+    out, res = results
+    for F in demo.DEMO_FRICTIONS:
+        seed = cfcontact.SolutionPath.load(out / f"path_F{F:g}")
+        exact = cfcontact.trace_path(demo.build(F), *demo.DEMO_ALPHA, method="exact")
+        assert exact.status == "completed"
+        assert [(t.node, t.set, t.kind) for t in exact.transitions] == [(t.node, t.set, t.kind) for t in seed.transitions]
+        assert max(abs(a.alpha - b.alpha) for a, b in zip(exact.transitions, seed.transitions)) <= 1e-5
+        assert exact.max_multiplicity()[0] == res[F]["max_multiplicity"]
+
+
+def test_plotted_component_is_a_fold_node(results):
+    import cfcontact
+
+    out, _ = results
+    path = cfcontact.SolutionPath.load(out / "path_F0.6")
+    name, node = demo.fold_component(path)
+    assert name == "lam_n" and node in {t.node for t in path.folds}
 
 
 @pytest.mark.slow
 def test_demo_script_default_model_reproduces_seed_multiplicities(tmp_path):
-    """The full demo (default model n = 1320, m = 30) as the README's main command runs it."""
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "main.py"), "--output", str(tmp_path),
-                           "--friction", "0.1", "--friction", "30"],
+    """The full demo as the README's main command runs it, pictures included."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "main.py"), "--output", str(tmp_path)],
                           capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = {r["friction"]: r for r in json.loads((tmp_path / "summary.json").read_text())}
     assert summary[0.1]["folds"] == 0 and summary[0.1]["max_multiplicity"] == 1
-    assert summary[30.0]["n"] == 1320 and summary[30.0]["m"] == 30
-    assert summary[30.0]["folds"] >= 4 and summary[30.0]["max_multiplicity"] >= 5
-    assert os.path.getsize(tmp_path / "solutions_F30.png") > 10000
+    assert summary[0.6]["max_multiplicity"] >= 3
+    assert summary[30.0]["max_multiplicity"] >= 5
+    for F in ("0.1", "0.6", "30"):
+        assert os.path.getsize(tmp_path / f"solutions_F{F}.png") > 10000
