@@ -315,12 +315,14 @@ def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
     # alpha window: a steep constraint (e.g. rho N u of a node that just opened, on a stiff/soft
     # bimaterial model) evaluated at the transition alpha of another line misses zero by its slope
     # times the rounding error of that alpha.
-    if zero.size > 8:  # (usually one or two entries: plain floats below are cheaper then)
+    if zero.size > 8:
         if (vz < -(tv + np.abs(sz) * window)).any():
             return False, False
-    vz, sz = vz.tolist(), sz.tolist()
-    if any(v < -(tv + abs(sl) * window) for v, sl in zip(vz, sz)):
-        return False, False
+        vz, sz = vz.tolist(), sz.tolist()
+    else:  # usually one or two entries: plain floats are cheaper than array operations then
+        vz, sz = vz.tolist(), sz.tolist()
+        if any(v < -(tv + abs(sl) * window) for v, sl in zip(vz, sz)):
+            return False, False
     ts = ln.tol_s(ctx.rtol)
     valid = [True, True]
     # few constraints vanish at once: plain floats are cheaper than array operations here
