@@ -307,22 +307,20 @@ def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
     vals = ln.values(alpha)
     tv = ln.tol_v(alpha, ctx.rtol)
     window = ALPHA_WINDOW * (1.0 + abs(alpha))
-    zero = (vals <= tv).nonzero()[0]  # the constraints vanishing at alpha (or negative): their slopes decide
+    # The constraints that vanish at alpha, up to rounding, decide by their slopes: a value within
+    # tv, or -- for a steep constraint -- a value whose own root lies within the alpha window.  A
+    # steep constraint (e.g. rho N u of a node that just opened, on a stiff/soft bimaterial model)
+    # evaluated at the transition alpha of another line misses zero by its slope times the
+    # rounding error of that alpha, with either sign (it differed between Debian 12 and 13).
+    # Negative values beyond that are violations.
+    reach = tv + np.abs(ln.slopes) * window
+    zero = (vals <= reach).nonzero()[0]
     if not zero.size:
         return True, True
-    vz, sz = vals[zero], ln.slopes[zero]
-    # A value below -tv is negative beyond rounding unless the constraint's own root lies within the
-    # alpha window: a steep constraint (e.g. rho N u of a node that just opened, on a stiff/soft
-    # bimaterial model) evaluated at the transition alpha of another line misses zero by its slope
-    # times the rounding error of that alpha.
-    if zero.size > 8:
-        if (vz < -(tv + np.abs(sz) * window)).any():
-            return False, False
-        vz, sz = vz.tolist(), sz.tolist()
-    else:  # usually one or two entries: plain floats are cheaper than array operations then
-        vz, sz = vz.tolist(), sz.tolist()
-        if any(v < -(tv + abs(sl) * window) for v, sl in zip(vz, sz)):
-            return False, False
+    vz, sz, rz = vals[zero], ln.slopes[zero], reach[zero]
+    if (vz < -rz).any():
+        return False, False
+    vz, sz = vz.tolist(), sz.tolist()
     ts = ln.tol_s(ctx.rtol)
     valid = [True, True]
     # few constraints vanish at once: plain floats are cheaper than array operations here
@@ -333,9 +331,9 @@ def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
                 if not (dsl > ts and -v <= dsl * window + tv):
                     valid[k] = False
                 continue
-            # A small positive value that reaches zero only beyond a tiny alpha window ahead is a
-            # separate, later transition (a near-tie on a fine mesh: the value tolerance is
-            # relative to the largest indicator), not a constraint vanishing here.
+            # A positive value that reaches zero only beyond the alpha window ahead is a separate,
+            # later transition (a near-tie on a fine mesh: the value tolerance is relative to the
+            # largest indicator), not a constraint vanishing here; within the window it vanishes.
             ahead = v > 0.0 and dsl < -ts and v > -dsl * window
             if not (ahead or dsl > ts or abs(dsl) <= ts):
                 valid[k] = False

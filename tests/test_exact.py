@@ -481,9 +481,9 @@ def test_exact_resume_bad_input(tmp_path):
 def test_steep_constraint_missing_zero_by_rounding_is_a_tie():
     """At a transition alpha* computed from one line, a steep constraint of the next line (e.g.
     rho N u of a node that just opened, on a stiff-on-soft model) misses zero by its slope times
-    the rounding error of alpha*; that is a tie when its own root lies within ALPHA_WINDOW, so
-    the line continues in the direction where the constraint grows.  A value whose root lies
-    further away stays a violation in both directions."""
+    the rounding error of alpha*, with either sign; that is a tie when its own root lies within
+    ALPHA_WINDOW, so the line continues only in the direction where the constraint grows.  A
+    negative value whose root lies further away stays a violation in both directions."""
     from types import SimpleNamespace
 
     from cfcontact.exact import ALPHA_WINDOW, OPEN, TIE_RTOL, _Line, _valid_directions, state_constraints
@@ -504,3 +504,6 @@ def test_steep_constraint_missing_zero_by_rounding_is_a_tie():
     assert _valid_directions(ctx, ln, 0.5) == (True, False)
     assert _valid_directions(ctx, line(1.0), 0.5) == (False, False)  # root 6e-8 ahead: a violation
     assert _valid_directions(ctx, line(-1.0), 0.5) == (True, True)  # positive: consistent both ways
+    # the mirror case (seen on Debian 13 where Debian 12 gave the negative value): +1e-3 beyond
+    # tol_v, its root 6e-11 behind: it vanishes here, so the line cannot go backwards
+    assert _valid_directions(ctx, line(-1e-3), 0.5) == (True, False)
