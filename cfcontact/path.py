@@ -728,23 +728,46 @@ def _alpha_range(opts, alpha_start, alpha_end):
     return lo, hi
 
 
+#: Factors of rho tried by :func:`start_point` when SSNM fails with the system's own rho.
+START_RHO_FACTORS = (0.01, 100.0, 0.1, 10.0, 0.001, 1000.0)
+
+
 def start_point(system, alpha, y0, opts, solver) -> Solution:
-    """SSNM at alpha from y0; without y0, from 0 and, should that fail (SSNM is only locally
-    convergent), from the frictionless solution (a convex problem where SSNM is robust)."""
+    """SSNM at alpha from y0.  Without y0 SSNM starts from 0 and, should that fail (SSNM is only
+    locally convergent, and at large F it can cycle), from the frictionless solution (a convex
+    problem where SSNM is robust), from the solution with every node open (u = K^-1 f), and
+    with other augmentation parameters rho (START_RHO_FACTORS): SSNM's convergence depends on
+    rho, the solutions of (1)-(3) do not.  The first that converges is returned, with its sets
+    taken for the system's own rho; ConvergenceError of the first attempt when none does."""
     from cfcontact.errors import ConvergenceError
 
+    tol, max_iter = opts.tol, opts.max_iter
     try:
-        return ssnm(system, alpha, y0=y0, tol=opts.tol, max_iter=opts.max_iter, solver=solver)
+        return ssnm(system, alpha, y0=y0, tol=tol, max_iter=max_iter, solver=solver)
     except ConvergenceError as first:
         if y0 is not None:
             raise
-        log.info("SSNM from 0 failed at alpha=%g; restarting from the frictionless solution", alpha)
-        frictionless = system.with_friction(0.0)
+        failure = first
+
+    def attempts():
+        yield "from the frictionless solution", lambda: ssnm(
+            system, alpha, y0=ssnm(system.with_friction(0.0), alpha, tol=tol, max_iter=max_iter).y,
+            tol=tol, max_iter=max_iter, solver=solver)
+        open_sets = InactiveSets.from_states(["open"] * system.m)
+        yield "from the open solution", lambda: ssnm(
+            system, alpha, y0=(solver or get_solver(system)).solve(open_sets, system.load(alpha)),
+            tol=tol, max_iter=max_iter, solver=solver)
+        for factor in START_RHO_FACTORS:
+            yield f"with rho x {factor:g}", lambda factor=factor: Solution.from_y(
+                system, ssnm(system.with_rho(system.rho * factor), alpha, tol=tol, max_iter=max_iter).y, alpha)
+
+    for what, attempt in attempts():
+        log.info("SSNM from 0 failed at alpha=%g; trying %s", alpha, what)
         try:
-            guess = ssnm(frictionless, alpha, tol=opts.tol, max_iter=opts.max_iter)
-            return ssnm(system, alpha, y0=guess.y, tol=opts.tol, max_iter=opts.max_iter, solver=solver)
+            return attempt()
         except ConvergenceError:
-            raise first
+            continue
+    raise failure
 
 
 def branch_endpoints(system, solver, sets):

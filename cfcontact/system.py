@@ -199,6 +199,14 @@ class ContactSystem:
         """The same system (sharing K, N, T, loads) with another friction coefficient."""
         return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry, dict(self.info))
 
+    def with_rho(self, rho: float) -> "ContactSystem":
+        """The same system with another augmentation parameter rho > 0.  The solutions of (1)-(3)
+        do not depend on rho; the convergence of SSNM and the set tests do."""
+        if not (np.isfinite(rho) and rho > 0):
+            raise InputError(f"rho must be a finite number > 0, got {rho!r}")
+        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, float(rho), self.geometry,
+                             dict(self.info))
+
     def with_loads(self, f1, f2) -> "ContactSystem":
         """The same system with other load vectors (NumPy arrays of length n or PETSc Vecs)."""
         vecs = []

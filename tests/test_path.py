@@ -140,3 +140,33 @@ def test_bad_options_and_ranges():
         cfcontact.trace_path(system, 0, 1, c_s=2.0)
     with pytest.raises(cfcontact.InputError, match="not a saved cfcontact path"):
         cfcontact.SolutionPath.load("/nonexistent-dir")
+
+
+@pytest.mark.parametrize("m,seed", [(3, 3), (3, 131), (5, 43), (5, 270)])
+def test_start_point_when_ssnm_from_zero_fails(m, seed):
+    """At F = 30 SSNM from 0 cycles on these small random systems; the start cascade (from the
+    frictionless solution, from the open solution, other rho) finds a solution of (1)-(3) with the
+    system's own rho, and both methods trace from it."""
+    from cfcontact.errors import ConvergenceError
+    from cfcontact.lumped import random_system
+    from cfcontact.path import PathOptions, start_point
+
+    system = random_system(m, seed, friction=30.0, coupling=3.0)
+    with pytest.raises(ConvergenceError):
+        cfcontact.ssnm(system, 0.0)
+    sol = start_point(system, 0.0, None, PathOptions(), None)
+    assert cfcontact.verify(system, sol.y, 0.0).ok(1e-9)
+    assert cfcontact.is_fixed_point(system, sol.y, sol.sets)
+    for method in ("seed", "exact"):
+        path = cfcontact.trace_path(system, 0.0, 1.0, method=method)
+        assert path.status == "completed", (method, path.status)
+
+
+def test_with_rho():
+    from cfcontact.lumped import one_node
+
+    s = one_node(2.5)
+    assert s.with_rho(3.0).rho == 3.0 and s.rho != 3.0
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(cfcontact.InputError, match="rho"):
+            s.with_rho(bad)
