@@ -225,3 +225,23 @@ def test_readme_pictures_present_and_small():
         _assert_picture(fn, (600, 360))
         assert os.path.getsize(fn) < 150_000, fn
         assert f"docs/img/{v}.png" in readme, v
+
+
+def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
+    """demos/cases/soft_layer.toml builds the main demo's system at F = 0.6 (same loads, bit for
+    bit up to assembly order) and its path has two folds and three solutions."""
+    sys.path.insert(0, os.path.join(ROOT, "demos"))
+    try:
+        import main as demo
+    finally:
+        sys.path.pop(0)
+    case = _copy_case(tmp_path, "soft_layer.toml")
+    system = cli.build_system(cli.load_case(case))
+    ref = demo.build(0.6)
+    assert (system.n, system.m) == (1320, 30)
+    for a, b in zip(system.loads_numpy(), ref.loads_numpy()):
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+    assert cli.main(["run", case, "-q"]) == 0
+    path = SolutionPath.load(str(tmp_path / "soft_layer_out" / "path"))
+    assert path.status == "completed" and len(path.folds) == 2
+    assert path.max_multiplicity()[0] == 3
