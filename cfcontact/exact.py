@@ -659,6 +659,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     branch has ``parent`` = the branch that reached the branch point and ``origin`` = a new
     Transition).  ``path.status`` (the main run's) is unchanged; the sub-run's status and its
     branch indices are returned and stored in ``event.data["followed"][str(alternative)]``.
+    A sub-run stopped by the options' callback ends there (status "stopped by callback"):
+    ``path.resume_state`` keeps the main run's state, so that resuming the path continues the
+    main run, not the alternative.
     """
     if not (0 <= event_index < len(path.events)) or path.events[event_index].kind != "branch_point":
         raise InputError(f"event {event_index} is not a branch_point event of this path")
@@ -687,7 +690,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
                     changes=changes)
     path.transitions.append(tr)
     first = len(path.branches)
+    main_resume_state = path.resume_state
     status = _run(ctx, path, ln, d, a, None, parent=from_b.index, origin=tr.index)
+    path.resume_state = main_resume_state  # (_run sets it when the callback stops the sub-run)
     if path.lazy and getattr(ctx.solver, "size", 1) > 1:
         path.form()  # collective (see _finish)
     st = ctx.solver.stats.as_dict()
