@@ -85,7 +85,7 @@ Case file (TOML)
     animation_frames = 60
     # magnification = 50.0
     # window_size = [1200, 600]
-    # stress = false             # colour panel.png by the von Mises stress
+    # stress = false             # colour panel.png (and the animation) by the von Mises stress
     # xdmf = false               # solutions.xdmf for ParaView (the panel's solutions)
 
 Every section and key is optional except ``[geometry] kind`` (and ``file`` for "msh",
@@ -952,9 +952,16 @@ def write_outputs(path, case, outdir, timings, args, system=None):
 
             fmt = out["animation_format"]
             name = "animation_frames" if fmt == "frames" else f"animation.{fmt}"
+            stress = None
+            if out["stress"]:
+                from cfcontact import fields
+
+                def stress(sol):
+                    return fields.von_mises(path.geometry, sol.u)
+
             res = render.render_animation(path, os.path.join(outdir, name), frames=out["animation_frames"],
                                           magnification=mag, window_size=(960, 640) if ws is None else tuple(ws),
-                                          title=case.get("title"))
+                                          title=case.get("title"), stress=stress)
             if res.note:
                 _warn(args, res.note)
             files.append(os.path.relpath(res.path, outdir) + ("/" if res.kind == "png-frames" else ""))
@@ -1158,11 +1165,20 @@ def cmd_plot(args):
     return EXIT_OK
 
 
-def _render_animation(args, path, ws):
+def _render_animation(args, path, ws, src):
     from cfcontact import render
 
+    stress = None
+    if args.stress:  # cells coloured by the von Mises stress, one scale for all frames
+        from cfcontact import fields
+
+        material = _saved_material(src, path)
+
+        def stress(sol):
+            return fields.von_mises(path.geometry, sol.u, material)
+
     res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
-                                  window_size=ws or (960, 640))
+                                  window_size=ws or (960, 640), stress=stress)
     if res.note:
         _warn(args, res.note)
     _say(args, f"wrote {res.path} ({res.kind}, {res.frames} frames)")
@@ -1178,7 +1194,7 @@ def cmd_render(args):
     if ws is not None and min(ws) < 16:
         raise CaseError(f"--window-size: width and height must be >= 16, got {ws}")
     if args.animation and args.alpha is None and not args.panel and args.output is None:
-        _render_animation(args, path, ws)
+        _render_animation(args, path, ws, src)
         return EXIT_OK
     if args.alpha is None:
         k, alpha = path.max_multiplicity()
@@ -1207,7 +1223,7 @@ def cmd_render(args):
                                window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0])
     _say(args, f"wrote {out} ({len(sols)} solution(s) at alpha = {alpha:.10g})")
     if args.animation:
-        _render_animation(args, path, ws)
+        _render_animation(args, path, ws, src)
     return EXIT_OK
 
 

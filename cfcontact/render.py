@@ -596,7 +596,8 @@ def _frame_states(path, frames):
 
 
 def render_animation(path, filename, frames=60, magnification: Optional[float] = None,
-                     window_size=(960, 640), fps: float = 10.0, title: Optional[str] = None) -> AnimationResult:
+                     window_size=(960, 640), fps: float = 10.0, title: Optional[str] = None,
+                     stress=None) -> AnimationResult:
     """Animate the deformed configuration along a traced path.
 
     frames : number of frames, spread evenly along the path in accumulated |Δα| (evaluated
@@ -605,16 +606,26 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
         ``*.mp4`` -> MP4 through imageio-ffmpeg (PNG frames if it is not installed);
         anything else -> a directory of numbered PNGs ``frame_0000.png``...
         Fallback frames go to ``<stem>_frames/`` next to ``filename``.
+    stress : optional callable ``stress(solution)`` -> one value per cell (e.g. ``lambda s:
+        cfcontact.fields.von_mises(path.geometry, s.u)``); the cells are then coloured by it, on one
+        colour scale for all frames, with a scalar bar.
     The magnification and the camera are the same in every frame.  Returns an :class:`AnimationResult`.
     """
     geometry = getattr(path, "geometry", None)
     if geometry is None:
         raise InputError("the path has no ContactGeometry (a lumped model); nothing to render")
     filename = os.fspath(filename)
+    if stress is not None and not callable(stress):
+        raise InputError(f"stress must be a callable solution -> one value per cell, got {type(stress).__name__}")
     sols = _frame_states(path, frames)
     us = [s.u for s in sols]
     for s in sols:
         _check_solution(geometry, s)
+    values, clim = None, None
+    if stress is not None:
+        values = [np.asarray(stress(s), dtype=float).ravel() for s in sols]
+        allv = np.concatenate(values)
+        clim = (float(allv.min()), float(allv.max()))
     mag = auto_magnification(geometry, us) if magnification is None else float(magnification)
     ext = os.path.splitext(filename)[1].lower()
     kind, note = "png-frames", ""
@@ -639,7 +650,8 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
     plotter = _new_plotter(window_size)
     try:
         for k, sol in enumerate(sols):
-            _draw(plotter, geometry, sol, mag, point_size=_point_size(window_size), legend=True,
+            _draw(plotter, geometry, sol, mag, stress=None if values is None else values[k], clim=clim,
+                  scalar_bar=k == 0, point_size=_point_size(window_size), legend=True,
                   title=title if title is not None else f"frame {k + 1}/{len(sols)}",
                   text=_info_text(sol, mag))
             if k == 0:

@@ -424,6 +424,24 @@ def test_render_stress(run_dir, tmp_path, capsys):
     assert "stores no material" in capsys.readouterr().err
 
 
+def test_render_animation_stress(run_dir, tmp_path):
+    """render --animation --stress: frames coloured by the von Mises stress, on one scale; the
+    plain animation's frames differ from them."""
+    pytest.importorskip("pyvista", reason="pyvista is not installed (scripts/install.sh installs it)")
+    plain, stress = tmp_path / "plain_frames", tmp_path / "stress_frames"
+    for folder, extra in ((plain, []), (stress, ["--stress"])):
+        assert cli.main(["render", str(run_dir), "--animation", str(folder), "--frames", "2",
+                         "--window-size", "420", "260", "-q", *extra]) == 0
+    for k in range(2):
+        a, b = _picture(plain / f"frame_{k:04d}.png"), _picture(stress / f"frame_{k:04d}.png")
+        assert b.shape == (260, 420, 3) and len(np.unique(b.reshape(-1, 3), axis=0)) >= 20
+        assert np.abs(a - b).sum() > 0
+    from cfcontact import render
+
+    with pytest.raises(InputError, match="callable"):
+        render.render_animation(SolutionPath.load(run_dir / "path"), tmp_path / "x", frames=2, stress=np.ones(3))
+
+
 def test_export_cli(run_dir, tmp_path, capsys):
     path = SolutionPath.load(run_dir / "path")
     out = tmp_path / "e.xdmf"
