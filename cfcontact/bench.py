@@ -21,7 +21,8 @@ nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two s
 (:func:`build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
 ``ru_maxrss`` of that process) and reports the time split
 
-    assembly (two_blocks) | factorization of K (PETSc log: MatLUFactorSym + MatLUFactorNum) |
+    assembly (two_blocks) | factorization of K (PETSc log: MatLUFactorSym + MatLUFactorNum, or the
+    MatCholFctr events of a Cholesky factorization) |
     condensation (S = B K^-1 B^T) | path (trace_path, the rest)
 
 and the ratio total / (assembly + factorization of K), total = the sum of the four.
@@ -294,7 +295,8 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
     t0 = time.perf_counter()
     solver = CondensedSolver(system)
     t_setup = time.perf_counter() - t0
-    t_fact = sum(PETSc.Log.Event(e).getPerfInfo()["time"] for e in ("MatLUFactorSym", "MatLUFactorNum"))
+    t_fact = sum(PETSc.Log.Event(e).getPerfInfo()["time"]
+                 for e in ("MatLUFactorSym", "MatLUFactorNum", "MatCholFctrSym", "MatCholFctrNum"))
     t_cond = solver.timings["condensation"]
     res.update(factorization_time=t_fact, condensation_time=t_cond, setup_other_time=t_setup - t_fact - t_cond,
                condensation=solver.condensation, rss_after_condensation_gib=peak_rss_gib(), stage="path")

@@ -9,10 +9,12 @@ DirNeu(Z, f) (method.md (9)) is then the dense system M(Z) lam = r(Z, w) with, p
     normal row     : A_nu: (S lam)_i = w_i            I_nu: lam_n,i = 0
     tangential row : A_t : (S lam)_{m+i} = w_{m+i}    I_t : lam_t,i - F (1_{I_t+} - 1_{I_t-}) lam_n,i = 0
 
-followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP,
-MUMPS when available; works under MPI), forms K^-1 B^T with multi-right-hand-side solves
+followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP:
+on one rank and for n <= NATIVE_MAX_DOFS PETSc's own Cholesky, S = X X^T from the forward
+substitutions X of B's rows; otherwise MUMPS when available, which works under MPI), or forms
+K^-1 B^T with multi-right-hand-side solves
 (``MatMatSolve``: on one rank with MUMPS B^T as one sparse right-hand side, else dense blocks
-of columns) only to get S, caches w for the loads seen
+of columns) only to get S, or takes S from MUMPS' Schur complement; it caches w for the loads seen
 (f1, f2), and LU-factors the reduced system (free multipliers only, see ``_factor``) per
 inactive-set combination (dense, cached).  :meth:`CondensedSolver.displacements` forms u for
 many (alpha, lam) at once (one multi-RHS solve per block): the exact method stores only the
@@ -52,6 +54,14 @@ STORE_LIMIT = 50_000_000
 #: of 6e-10); above it the Schur complement is much cheaper (two blocks, n = 9744, m = 84: S
 #: and K's factorization in 29 ms instead of 104 ms).
 SCHUR_MIN_ENTRIES = 1_000_000
+#: On one rank, K with at most this many DOFs is factored by PETSc's own sparse Cholesky (K is
+#: SPD: no pivoting needed) in reverse Cuthill-McKee order, and S, w1, w2 come from forward
+#: substitutions alone (:meth:`CondensedSolver._condense_forward`).  At this size MUMPS' fixed
+#: cost dominates: the solver's set-up on the main demo (n = 1320) took 4.1 ms instead of 6.0 ms
+#: with MUMPS' LU and its sparse-right-hand-side solve for S.  The band of an RCM-ordered 2D mesh
+#: grows like sqrt(n): on the two-block meshes of the benchmark MUMPS was as fast at n = 1872 and
+#: faster from n = 2880 (13 ms instead of 17 ms; 21 instead of 32 ms at n = 4104).
+NATIVE_MAX_DOFS = 2000
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
@@ -109,7 +119,10 @@ class CondensedSolver:
     ----------
     system : ContactSystem
     options : SolverOptions (prefix: the KSP of K uses ``<prefix>K_``; solver_type; cache =
-        how many dense LU factorizations of M(Z) to keep, at least 64)
+        how many dense LU factorizations of M(Z) to keep, at least 64).  solver_type "petsc":
+        PETSc's own Cholesky of K (RCM order) with S from forward substitutions, the default on
+        one rank for n <= NATIVE_MAX_DOFS; "mumps" (the default otherwise) or another package:
+        its LU of K.  ``-<prefix>K_pc_type`` etc. still apply (``setFromOptions``).
     schur : form S from the Schur complement of K on the contact DOFs, which MUMPS computes
         during the factorization (about the cost of the factorization instead of 2m solves).
         Default: when possible (one rank, MUMPS) and worth it (K^-1 B^T would have at least
@@ -133,12 +146,15 @@ class CondensedSolver:
         self.r0, self.r1 = system.K.getOwnershipRange()
         m = self.m
         self.nloc = self.r1 - self.r0
-        self.K_local = linalg.local_csr(system.K)
+        self._K_local = None  # SciPy copy of K's local rows, for K_times (formed when first needed)
         N, T = system.contact_maps()
         self.B = sp.vstack([N, T]).tocsr()
         self.B_local = self.B[:, self.r0:self.r1].tocsr()  # 2m x nloc
         self.F = system.friction_vector
-        self.solver_type = self.options.solver_type or _default_solver_type(self.size)
+        self._F0 = self.F == 0.0
+        self._m_bytes = int(m).to_bytes(4, "little")  # the tail of InactiveSets.key()
+        self.solver_type = self.options.solver_type or (
+            "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
         self._loads: list = []  # [(f, w)]
         #: wall times [s] of the set-up: "factorization" (KSP set-up of K), "condensation" (S)
@@ -149,8 +165,11 @@ class CondensedSolver:
         ksp.setOperators(system.K)
         ksp.setType("preonly")
         pc = ksp.getPC()
-        pc.setType("lu")
-        if self.solver_type != "petsc":
+        if self.solver_type == "petsc" and self.size == 1:
+            pc.setType("cholesky")  # K is SPD: PETSc's Cholesky needs no pivoting
+            pc.setFactorOrdering("rcm")
+        else:
+            pc.setType("lu")
             pc.setFactorSolverType(self.solver_type)
         ksp.setOptionsPrefix(self.options.prefix + "K_")
         ksp.setFromOptions()
@@ -175,6 +194,8 @@ class CondensedSolver:
                                       f"condition): PETSc error {exc.ierr}") from exc
         self.stats.factorizations += 1
         self.ksp = ksp
+        #: how K was factored: "<pc type>/<package>", e.g. "cholesky/petsc" or "lu/mumps"
+        self.k_factorization = f"{pc.getType()}/{pc.getFactorSolverType()}"
         self._x, self._b = system.K.createVecs()
         self.timings["factorization"] = time.perf_counter() - t0
         # ---- S = B K^-1 B^T
@@ -183,8 +204,13 @@ class CondensedSolver:
         S = self._schur_from_factor() if self._schur_dofs is not None else None
         if S is None and schur:
             raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
-        #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs) or "solves" (2m columns)
+        #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs), "forward"
+        #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
         self.condensation = "schur" if S is not None else "solves"
+        if S is None and self.k_factorization == "cholesky/petsc" and store_columns is not False:
+            S = self._condense_forward()
+            if S is not None:
+                self.condensation = "forward"
         self.S = S if S is not None else self._schur()
         self.timings["condensation"] = time.perf_counter() - t0
 
@@ -281,6 +307,73 @@ class CondensedSolver:
     def _kinv_columns(self, cols) -> np.ndarray:
         """Local rows of K^-1 B^T[:, cols] (nloc x len(cols))."""
         return self._ksolve_dense(np.asfortranarray(self.B_local[cols, :].T.toarray()))
+
+    def _condense_forward(self) -> Optional[np.ndarray]:
+        """S and w1, w2 = B K^-1 (f1, f2) from forward substitutions alone, with PETSc's Cholesky
+        factor K = U^T D U (one rank): MatForwardSolve gives x = (U^T D^(1/2))^-1 b, so with X the
+        forward substitutions of B's rows, B K^-1 B^T = X X^T and B K^-1 f = X x_f -- half of each
+        solve, and S symmetric positive semidefinite by construction.  One check at the end: the
+        backward substitution of X's first row gives z = K^-1 b_0 (b_0 = B's first row), which
+        must satisfy K z = b_0 with b_0 . z = S[0, 0] (else None: S by full solves), and a
+        condition-number bound |K| |z| / |b_0| beyond 1e14 means K is singular (rigid-body mode:
+        a body without Dirichlet condition) -- SingularSystemError."""
+        m2 = 2 * self.m
+        if m2 == 0:
+            return None
+        fs = self.system.loads_numpy()
+        R = np.empty((m2 + 2, self.n))
+        R[:m2] = self.B.toarray()
+        R[m2], R[m2 + 1] = fs
+        X = np.empty_like(R)
+        fm = self.ksp.getPC().getFactorMatrix()
+        b, x = self._b, self._x
+        try:
+            for j in range(m2 + 2):
+                b.placeArray(R[j])
+                x.placeArray(X[j])
+                try:
+                    fm.solveForward(b, x)
+                finally:
+                    b.resetArray()
+                    x.resetArray()
+        except PETSc.Error as exc:  # a factorization without MatForwardSolve: full solves instead
+            log.info("forward substitution unavailable (PETSc error %s); S by solves", exc.ierr)
+            return None
+        self.stats.linear_solves += m2 + 2
+        if not np.isfinite(X).all():
+            raise SingularSystemError("K is singular (zero pivot in its Cholesky factorization; every body needs a "
+                                      "Dirichlet condition)")
+        XB = X[:m2]
+        S = XB @ XB.T
+        W = XB @ X[m2:].T
+        # check: z = K^-1 b_0 by the backward substitution of x_0
+        z = np.empty(self.n)
+        x.placeArray(X[0])
+        b.placeArray(z)
+        try:
+            fm.solveBackward(x, b)
+        finally:
+            x.resetArray()
+            b.resetArray()
+        self.stats.linear_solves += 1
+        b0, Kz = R[0], np.empty(self.n)
+        b.placeArray(z)
+        x.placeArray(Kz)
+        try:
+            self.system.K.mult(b, x)
+        finally:
+            b.resetArray()
+            x.resetArray()
+        nb, nz = np.abs(b0).max(), np.abs(z).max()
+        knorm = self.system.K.norm(PETSc.NormType.INFINITY)
+        if not (np.isfinite(z).all() and knorm * nz <= 1e14 * nb):
+            raise SingularSystemError(f"K is singular or nearly so (condition number at least "
+                                      f"{knorm * nz / nb:.1e}; every body needs a Dirichlet condition)")
+        if np.abs(Kz - b0).max() > 1e-8 * knorm * nz or abs(b0 @ z - S[0, 0]) > 1e-8 * abs(S[0, 0]):
+            log.warning("forward substitutions with K's Cholesky factor do not give K^-1 = X^T X here; S by solves")
+            return None
+        self._loads.extend((np.array(f, copy=True), W[:, j].copy()) for j, f in enumerate(fs))
+        return 0.5 * (S + S.T)
 
     def _condense_sparse(self) -> Optional[np.ndarray]:
         """B K^-1 B^T (before symmetrization) from one multi-RHS solve with B^T as a sparse
@@ -411,12 +504,18 @@ class CondensedSolver:
         and lam_t,i = +-F lam_n,i of a slipping node is substituted into the lam_n,i column.
         So each branch factors a k x k matrix, k <= 2m, instead of the 2m x 2m M(Z) of
         :meth:`matrix` (which is kept as the reference form)."""
-        key = Z.canonical_key(self.system.friction)
+        return self._factor_sets(Z.nu, Z.tp, Z.tm)
+
+    def _factor_sets(self, nu, tp, tm):
+        """:meth:`_factor` for the sets given as three boolean arrays (no InactiveSets formed)."""
+        # the bytes of InactiveSets(nu, tp, tm).canonical_key(friction), formed directly
+        free = nu | self._F0
+        key = np.packbits(np.concatenate((nu, tp | (free & tm), tm & ~free))).tobytes() + self._m_bytes
         hit = self._lu.get(key)
         if hit is not None:
             self._lu.move_to_end(key)
             return hit
-        return self._factor_reduced(key, *self._reduction(Z.nu, Z.tp, Z.tm), lambda: repr(Z))
+        return self._factor_reduced(key, *self._reduction(nu, tp, tm), lambda: repr(InactiveSets(nu, tp, tm)))
 
     def _reduction(self, nu, tp, tm):
         """(rows, closed, slip, coef) of the reduced system of the sets (nu, tp, tm), see :meth:`_factor`."""
@@ -553,15 +652,18 @@ class CondensedSolver:
         (lam, sets of lam's iteration, iterations, converged); lam is the last iterate (the
         previous one when not converged, as the seed's ConvergenceError reports it)."""
         m = self.m
+        if m == 0:
+            return np.zeros(0), Z, 1, True
+        nu, tp, tm = Z.nu, Z.tp, Z.tm
         for k in range(1, int(max_iter) + 1):
-            lam = self.multipliers(Z, w)
+            lam = self._solve_reduced(self._factor_sets(nu, tp, tm), w)
             self.stats.ssnm_iterations += 1
             if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):
-                return lam, Z, k, True
+                return lam, InactiveSets(nu, tp, tm), k, True
             g = self.indicators(lam, w)
-            Z = InactiveSets(g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0)
+            nu, tp, tm = g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0
             lam_prev = lam
-        return lam_prev, Z, int(max_iter), False
+        return lam_prev, InactiveSets(nu, tp, tm), int(max_iter), False
 
     def _solve_reduced(self, entry, w):
         lu, piv, rows, slip, coef, _ = entry
@@ -624,6 +726,12 @@ class CondensedSolver:
         if not np.all(np.isfinite(y)):
             raise SingularSystemError(f"DirNeu(Z) could not be solved for {Z!r} (non-finite result)")
         return y
+
+    @property
+    def K_local(self):
+        if self._K_local is None:
+            self._K_local = linalg.local_csr(self.system.K)
+        return self._K_local
 
     def K_times(self, u: np.ndarray) -> np.ndarray:
         """K u as a whole vector (for residual checks)."""

@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 import cfcontact
+from cfcontact import condensed
 from cfcontact.condensed import CondensedSolver
 from cfcontact.exact import canonical_codes
 from cfcontact.lumped import one_node, random_system
-from cfcontact.ssnm import DirNeuSolver, InactiveSets
+from cfcontact.ssnm import DirNeuSolver, InactiveSets, SolverOptions
 
 
 def keys(path, friction):
@@ -80,32 +81,66 @@ def test_exact_callback_sees_displacements_with_lazy_branches(systems):
         assert cfcontact.verify(system, p.solution, p.alpha).ok(1e-10)
 
 
+MUMPS = SolverOptions(solver_type="mumps")
+
+
 @pytest.mark.parametrize("fem", [False, True])
-def test_schur_complement_matches_solves(fem):
+def test_schur_complement_and_forward_substitutions_match_solves(fem):
     system = (cfcontact.two_blocks(nx=9, ny=3, friction=0.5, tractions1={"top1": (1e7, -1e8)},
                                    tractions2={"top1": (1e8, -1e7)}) if fem
               else random_system(4, 7, friction=0.8, extra_dofs=6))
-    a, b = CondensedSolver(system, schur=True), CondensedSolver(system, schur=False)
-    assert a.condensation == "schur" and b.condensation == "solves"
-    assert np.abs(a.S - b.S).max() <= 1e-10 * np.abs(b.S).max()
-    # by solves, the loads ride along (w1, w2 = B K^-1 f1,2 cached): 2m + 2 columns, one solve call
+    a, b = CondensedSolver(system, schur=True), CondensedSolver(system, options=MUMPS, schur=False)
+    c = CondensedSolver(system)  # small and serial: PETSc's Cholesky of K, S from forward substitutions
+    assert a.condensation == "schur" and b.condensation == "solves" and c.condensation == "forward"
+    assert a.k_factorization == b.k_factorization == "lu/mumps" and c.k_factorization == "cholesky/petsc"
+    # the loads ride along (w1, w2 = B K^-1 f1,2 cached): by solves 2m + 2 columns in one solve call,
+    # by forward substitutions 2m + 2 of them and one backward substitution (the check)
     assert a.stats.linear_solves == 0 and b.stats.linear_solves == 2 * system.m + 2
-    f1, f2 = system.loads_numpy()
-    wb = b.load_data_many([f1, f2])
-    assert b.stats.linear_solves == 2 * system.m + 2  # cached
-    assert np.abs(wb - a.load_data_many([f1, f2])).max() <= 1e-10 * np.abs(wb).max()
+    assert c.stats.linear_solves == 2 * system.m + 3
+    # independent reference: B K^-1 B^T and B K^-1 f by a dense SciPy solve
+    K, N, T, f1, f2 = system.to_scipy()
+    B = np.vstack([N.toarray(), T.toarray()])
+    X = np.linalg.solve(K.toarray(), np.column_stack([B.T, f1, f2]))
+    S_ref, W_ref = B @ X[:, :-2], B @ X[:, -2:]
+    for s in (a, b, c):
+        assert np.abs(s.S - S_ref).max() <= 1e-10 * np.abs(S_ref).max(), s.condensation
+        assert np.abs(s.load_data_many([f1, f2]) - W_ref).max() <= 1e-10 * np.abs(W_ref).max(), s.condensation
+    assert b.stats.linear_solves == 2 * system.m + 2 and c.stats.linear_solves == 2 * system.m + 3  # cached
     rng = np.random.default_rng(1)
     full = DirNeuSolver(system)
     for _ in range(5):
         Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
         f = system.load(rng.uniform(0, 1))
-        ya, yf = a.solve(Z, f), full.solve(Z, f)
-        assert np.abs(ya - yf).max() <= 1e-9 * np.abs(yf).max()
+        yf = full.solve(Z, f)
+        for s in (a, c):
+            assert np.abs(s.solve(Z, f) - yf).max() <= 1e-9 * np.abs(yf).max()
+
+
+def test_forward_substitutions_refuse_a_singular_K():
+    # the third DOF is a rigid mode (zero row and column): a zero pivot in the Cholesky factor
+    K = np.array([[2.0, 0.5, 0.0], [0.5, 1.0, 0.0], [0.0, 0.0, 0.0]])
+    system = cfcontact.ContactSystem.from_arrays(K, [[0, 1, 1]], [[1, 0, 1]], [1, 1, 1], [1, 1, 1], 0.3)
+    with pytest.raises(cfcontact.SingularSystemError, match="singular"):
+        CondensedSolver(system)
+    # nearly singular: a soft spring of 1e-15 relative stiffness on the free DOF
+    K[2, 2] = 1e-15
+    system = cfcontact.ContactSystem.from_arrays(K, [[0, 1, 1]], [[1, 0, 1]], [1, 1, 1], [1, 1, 1], 0.3)
+    with pytest.raises(cfcontact.SingularSystemError, match="condition number"):
+        CondensedSolver(system)
+
+
+def test_solver_type_selects_the_factorization_of_K(monkeypatch):
+    system = random_system(4, 3, friction=0.8, extra_dofs=6)
+    assert CondensedSolver(system, options=SolverOptions(solver_type="petsc")).condensation == "forward"
+    assert CondensedSolver(system, options=MUMPS).k_factorization == "lu/mumps"
+    monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: MUMPS by default
+    assert CondensedSolver(system).k_factorization == "lu/mumps"
 
 
 def test_schur_needs_interior_dofs_and_falls_back():
     system = one_node(2.5)  # every DOF is a contact DOF: no Schur complement, S by solves
-    assert CondensedSolver(system).condensation == "solves"
+    assert CondensedSolver(system, options=MUMPS).condensation == "solves"
+    assert CondensedSolver(system).condensation == "forward"
     with pytest.raises(cfcontact.InputError):
         CondensedSolver(system, schur=True)
 
