@@ -341,8 +341,8 @@ class CondensedSolver:
             return None
         self.stats.linear_solves += m2 + 2
         if not np.isfinite(X).all():
-            raise SingularSystemError("K is singular (zero pivot in its Cholesky factorization; every body needs a "
-                                      "Dirichlet condition)")
+            raise SingularSystemError("K is singular or not positive definite (its Cholesky factorization broke "
+                                      "down; every body needs a Dirichlet condition)")
         XB = X[:m2]
         S = XB @ XB.T
         W = XB @ X[m2:].T
