@@ -126,12 +126,14 @@ class CondensedSolver:
     schur : form S from the Schur complement of K on the contact DOFs, which MUMPS computes
         during the factorization (about the cost of the factorization instead of 2m solves).
         Default: when possible (one rank, MUMPS) and worth it (K^-1 B^T would have at least
-        SCHUR_MIN_ENTRIES entries); False: always by solves; True: required.  S from the
+        SCHUR_MIN_ENTRIES entries); False: never (S by solves or forward substitutions); True:
+        required (MUMPS' LU of K then).  S from the
         Schur complement is slightly less accurate (relative violations of (1)-(3) up to
         ~1e-9 instead of ~1e-11 on the demo mesh).
     store_columns : when S is formed by solves: all of K^-1 B^T at once (default: when it has
-        at most STORE_LIMIT entries per rank), else in column blocks.  It is never kept: u is always
-        K^-1 (f - B^T lam) by one sparse solve, since K^-1 f - (K^-1 B^T) lam loses accuracy
+        at most STORE_LIMIT entries per rank), else in column blocks (False also skips the
+        forward substitutions of PETSc's Cholesky, which hold an array of that size).  It is never
+        kept: u is always K^-1 (f - B^T lam) by one sparse solve, since K^-1 f - (K^-1 B^T) lam loses accuracy
         (contact forces nearly cancel the load; relative residual 4e-8 measured at n = 1.2e5).
     """
 
@@ -370,7 +372,8 @@ class CondensedSolver:
             raise SingularSystemError(f"K is singular or nearly so (condition number at least "
                                       f"{knorm * nz / nb:.1e}; every body needs a Dirichlet condition)")
         if np.abs(Kz - b0).max() > 1e-8 * knorm * nz or abs(b0 @ z - S[0, 0]) > 1e-8 * abs(S[0, 0]):
-            log.warning("forward substitutions with K's Cholesky factor do not give K^-1 = X^T X here; S by solves")
+            log.warning("forward substitutions with K's Cholesky factor do not give B K^-1 B^T = X X^T here; "
+                        "S by solves")
             return None
         self._loads.extend((np.array(f, copy=True), W[:, j].copy()) for j, f in enumerate(fs))
         return 0.5 * (S + S.T)
