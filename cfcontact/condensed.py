@@ -40,7 +40,7 @@ from petsc4py import PETSc
 
 from cfcontact import linalg
 from cfcontact.errors import InputError, SingularSystemError
-from cfcontact.ssnm import InactiveSets, SolverOptions, SolverStats, _default_solver_type
+from cfcontact.ssnm import InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_key
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -154,7 +154,6 @@ class CondensedSolver:
         self.B_local = self.B[:, self.r0:self.r1].tocsr()  # 2m x nloc
         self.F = system.friction_vector
         self._F0 = self.F == 0.0
-        self._m_bytes = int(m).to_bytes(4, "little")  # the tail of InactiveSets.key()
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
@@ -328,16 +327,9 @@ class CondensedSolver:
         R[m2], R[m2 + 1] = fs
         X = np.empty_like(R)
         fm = self.ksp.getPC().getFactorMatrix()
-        b, x = self._b, self._x
         try:
             for j in range(m2 + 2):
-                b.placeArray(R[j])
-                x.placeArray(X[j])
-                try:
-                    fm.solveForward(b, x)
-                finally:
-                    b.resetArray()
-                    x.resetArray()
+                self._on_arrays(fm.solveForward, R[j], X[j])
         except PETSc.Error as exc:  # a factorization without MatForwardSolve: full solves instead
             log.info("forward substitution unavailable (PETSc error %s); S by solves", exc.ierr)
             return None
@@ -349,23 +341,11 @@ class CondensedSolver:
         S = XB @ XB.T
         W = XB @ X[m2:].T
         # check: z = K^-1 b_0 by the backward substitution of x_0
-        z = np.empty(self.n)
-        x.placeArray(X[0])
-        b.placeArray(z)
-        try:
-            fm.solveBackward(x, b)
-        finally:
-            x.resetArray()
-            b.resetArray()
+        z, Kz = np.empty(self.n), np.empty(self.n)
+        self._on_arrays(fm.solveBackward, X[0], z)
         self.stats.linear_solves += 1
-        b0, Kz = R[0], np.empty(self.n)
-        b.placeArray(z)
-        x.placeArray(Kz)
-        try:
-            self.system.K.mult(b, x)
-        finally:
-            b.resetArray()
-            x.resetArray()
+        self._on_arrays(self.system.K.mult, z, Kz)
+        b0 = R[0]
         nb, nz = np.abs(b0).max(), np.abs(z).max()
         knorm = self.system.K.norm(PETSc.NormType.INFINITY)
         if not (np.isfinite(z).all() and knorm * nz <= 1e14 * nb):
@@ -377,6 +357,18 @@ class CondensedSolver:
             return None
         self._loads.extend((np.array(f, copy=True), W[:, j].copy()) for j, f in enumerate(fs))
         return 0.5 * (S + S.T)
+
+    def _on_arrays(self, op, src: np.ndarray, dst: np.ndarray):
+        """op(b, x) (a PETSc solve or product) with the work vectors b, x placed on the contiguous
+        arrays src, dst: no copies in or out."""
+        b, x = self._b, self._x
+        b.placeArray(src)
+        x.placeArray(dst)
+        try:
+            op(b, x)
+        finally:
+            b.resetArray()
+            x.resetArray()
 
     def _condense_sparse(self) -> Optional[np.ndarray]:
         """B K^-1 B^T (before symmetrization) from one multi-RHS solve with B^T as a sparse
@@ -511,9 +503,7 @@ class CondensedSolver:
 
     def _factor_sets(self, nu, tp, tm):
         """:meth:`_factor` for the sets given as three boolean arrays (no InactiveSets formed)."""
-        # the bytes of InactiveSets(nu, tp, tm).canonical_key(friction), formed directly
-        free = nu | self._F0
-        key = np.packbits(np.concatenate((nu, tp | (free & tm), tm & ~free))).tobytes() + self._m_bytes
+        key = canonical_key(nu, tp, tm, self._F0)
         hit = self._lu.get(key)
         if hit is not None:
             self._lu.move_to_end(key)

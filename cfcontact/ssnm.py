@@ -36,6 +36,14 @@ STATE_NAMES = ("open", "stick", "slip+", "slip-")
 
 
 # --------------------------------------------------------------------------- sets
+def canonical_key(nu, tp, tm, frictionless) -> bytes:
+    """:meth:`InactiveSets.canonical_key` of the sets given as boolean arrays, no object formed
+    (``frictionless``: F == 0 per node): a tangentially free node that is open or frictionless
+    counts as I_t^+ alone; the bytes are :meth:`InactiveSets.key` of that form."""
+    free = nu | frictionless
+    return np.packbits(np.concatenate((nu, tp | (free & tm), tm & ~free))).tobytes() + nu.size.to_bytes(4, "little")
+
+
 @dataclass(frozen=True, eq=False)
 class InactiveSets:
     """Inactive sets Z = {I_nu; I_t^+; I_t^-} as boolean arrays of length m."""
@@ -70,10 +78,7 @@ class InactiveSets:
         both all give lam_t = 0, so only "tangentially free or not" matters there.
         """
         F = np.broadcast_to(np.asarray(friction, dtype=float), (self.m,))
-        free = self.nu | (F == 0.0)
-        tp = np.where(free, self.tp | self.tm, self.tp)
-        tm = np.where(free, False, self.tm)
-        return InactiveSets(self.nu, tp, tm).key()
+        return canonical_key(self.nu, self.tp, self.tm, F == 0.0)
 
     def equivalent(self, other: "InactiveSets", friction) -> bool:
         return self.canonical_key(friction) == other.canonical_key(friction)
