@@ -4,6 +4,10 @@ With B = [N; T] (2m x n) and lam = (lam_n, lam_t), equation (1) gives u = K^-1 (
 
     B u = w - S lam,    S = B K^-1 B^T (2m x 2m, dense),   w = B K^-1 f.
 
+With an initial gap g (:attr:`ContactSystem.gap`) :meth:`CondensedSolver.load_data` returns
+w = B K^-1 f - (g; 0) instead, so that w - S lam = (N u - g; T u): everything below then holds
+with the gap.
+
 DirNeu(Z, f) (method.md (9)) is then the dense system M(Z) lam = r(Z, w) with, per node i,
 
     normal row     : A_nu: (S lam)_i = w_i            I_nu: lam_n,i = 0
@@ -438,18 +442,18 @@ class CondensedSolver:
 
     # ---------------------------------------------------------------- loads
     def load_data(self, f: np.ndarray) -> np.ndarray:
-        """w = B K^-1 f (cached for the last few loads)."""
+        """w = B K^-1 f - (g; 0) (B K^-1 f cached for the last few loads), g the system's gap."""
         for g, w in self._loads:
             if g is f or np.array_equal(g, f):
-                return w
+                return self._gap_shifted(w)
         w = self._allreduce(self.B_local @ self._ksolve(f[self.r0:self.r1]))
         self._loads.append((np.array(f, copy=True), w))
         if len(self._loads) > 4:
             self._loads.pop(0)
-        return w
+        return self._gap_shifted(w)
 
     def load_data_many(self, fs) -> np.ndarray:
-        """w_j = B K^-1 f_j for the loads fs (2m x k), the uncached ones in one multi-RHS solve."""
+        """w_j = B K^-1 f_j - (g; 0) for the loads fs (2m x k), the uncached ones in one multi-RHS solve."""
         fs = [np.asarray(f, dtype=float) for f in fs]
         cached = {}
         for j, f in enumerate(fs):
@@ -466,7 +470,20 @@ class CondensedSolver:
                 self._loads.append((np.array(fs[j], copy=True), cached[j]))
             while len(self._loads) > 4:
                 self._loads.pop(0)
-        return np.column_stack([cached[j] for j in range(len(fs))]) if fs else np.zeros((2 * self.m, 0))
+        W = np.column_stack([cached[j] for j in range(len(fs))]) if fs else np.zeros((2 * self.m, 0))
+        return self._gap_shifted(W)
+
+    def _gap_shifted(self, w: np.ndarray) -> np.ndarray:
+        """w - (g; 0) (for a vector or the columns of a matrix): with B u = w - S lam the normal rows
+        then give N u - g, so the closed nodes' rows (S lam)_i = w_i read (N u)_i = g_i and every
+        quantity formed from w (multipliers, indicators, the condensed SSNM) includes the gap.
+        No copy when the gap is zero."""
+        gap = self.system.gap
+        if not self.system.has_gap:
+            return w
+        out = np.array(w, dtype=float, copy=True)
+        out[:self.m] -= gap if out.ndim == 1 else gap[:, None]
+        return out
 
     # ------------------------------------------------------------ dense part
     def matrix(self, Z: InactiveSets) -> np.ndarray:

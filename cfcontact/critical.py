@@ -21,6 +21,10 @@ of up to ``stick_window`` nodes; it returns the smallest such F with its configu
 is a scan: configurations outside it (wider or non-contiguous contact sets) can only lower
 the true threshold, so the result is an upper bound for the onset of folds, and a useful
 measure of how strongly a model couples normal and tangential contact displacements.
+
+An initial gap (:attr:`ContactSystem.gap`) does not enter: it shifts the right-hand side
+w = B K^-1 f - (g; 0) of every piece, not its matrix, so it moves where a path meets a piece but
+not whether the piece folds.  Loads do not enter either.
 """
 
 from __future__ import annotations

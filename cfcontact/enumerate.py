@@ -1,7 +1,9 @@
 """Every solution at one alpha by trying every nodal state combination (the seed's Remark 3.2).
 
 Per contact node the states are open / stick / slip+ / slip- (an open node is tangentially
-free, lam_t = 0, so its tangential sign is irrelevant; a node with F = 0 has only open / free).
+free, lam_t = 0, so its tangential sign is irrelevant; a node with F = 0 has only open / free;
+a node without tangential DOFs, :attr:`ContactSystem.no_tangent`, only open / stick with
+lam_t = 0).  The system's initial gap enters through w (:meth:`CondensedSolver.load_data`).
 Every solution y of (4) is DirNeu(Z, f) for the canonical form of its own sets Z(y) (Remark
 3.1), so trying the 4^m combinations finds all of them.  Each combination is solved in the
 condensed form (:mod:`cfcontact.condensed`): with S = B K^-1 B^T and w = B K^-1 f(alpha)
@@ -69,7 +71,9 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
     F = system.friction_vector
     rho = system.rho
     F0 = F == 0.0
-    states = [np.array([0, 2]) if F0[i] else np.array([0, 1, 2, 3]) for i in range(m)]
+    no_t = system.no_tangent
+    states = [np.array([0, 1]) if no_t[i] else np.array([0, 2]) if F0[i] else np.array([0, 1, 2, 3])
+              for i in range(m)]
     radices = [len(s) for s in states]
     total = int(np.prod(radices)) if m else 1
     I2 = np.eye(2 * m)
@@ -82,7 +86,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         tp = (codes == 0) | (codes == 2)
         tm = codes == 3
         it = tp | tm
-        act = np.concatenate([~nu, ~it], axis=1)  # rows taken from S
+        act = np.concatenate([~nu, ~it & ~no_t], axis=1)  # rows taken from S (else lam = 0 rows)
         M = np.where(act[:, :, None], S[None], I2[None])
         sgn = tp.astype(float) - tm.astype(float)
         M[:, m + idx, idx] = np.where(it, -F * sgn, M[:, m + idx, idx])

@@ -1,12 +1,15 @@
 """Semi-smooth Newton layer: inactive sets, the generalized Jacobian J(Z), DirNeu, SSNM.
 
-Notation follows the seed (Section 3) and ``method.md``.  With y = (u, lam_n, lam_t)::
+Notation follows the seed (Section 3) and ``method.md``.  With y = (u, lam_n, lam_t) and the
+system's initial gap g (:attr:`ContactSystem.gap`, zero by default)::
 
-    I_nu  = { i : lam_n,i + rho (N u)_i < 0 }                    (open nodes)
+    I_nu  = { i : lam_n,i + rho ((N u)_i - g_i) < 0 }            (open nodes)
     I_t^+ = { i : lam_t,i + rho (T u)_i - F lam_n,i > 0 }         (slip +)
     I_t^- = { i : lam_t,i + rho (T u)_i + F lam_n,i < 0 }         (slip -)
 
-and ``dirneu(Z, f)`` solves J(Z) y = (f, 0, 0) with J of method.md (5).  J is
+and ``dirneu(Z, f)`` solves J(Z) y = (f, r_g, 0) with J of method.md (5), r_g = -rho g on the
+closed nodes (A_nu: (N u)_i = g_i) and 0 on the open ones: DirNeu is affine in f (linear when
+g = 0), and along f(alpha) with Z fixed y(alpha) is still affine because g is constant.  J is
 assembled as one PETSc AIJ matrix: the displacement rows are distributed as the
 rows of K, the 2m multiplier rows live on the last rank, so the global order is
 (u, lam_n, lam_t).  It is factored by a direct solver (MUMPS where PETSc has it)
@@ -150,13 +153,13 @@ class InactiveSets:
 def indicators(system: ContactSystem, y: np.ndarray):
     """The three indicator vectors of (11)-(13) / (17) at y:
 
-    ``lam_n + rho N u``, ``lam_t + rho T u - F lam_n``, ``lam_t + rho T u + F lam_n``."""
+    ``lam_n + rho (N u - g)``, ``lam_t + rho T u - F lam_n``, ``lam_t + rho T u + F lam_n``."""
     n, m = system.n, system.m
     y = np.asarray(y)
     u, ln, lt = y[:n], y[n:n + m], y[n + m:]
     N, T = system.contact_maps()
     F = system.friction_vector
-    a = ln + system.rho * (N @ u)
+    a = ln + system.rho * (N @ u - system.gap)
     b = lt + system.rho * (T @ u)
     return a, b - F * ln, b + F * ln
 
@@ -255,6 +258,9 @@ class DirNeuSolver:
         self.K_local = linalg.local_csr(system.K)
         N, T = system.contact_maps()
         self.N, self.T = N, T
+        self.no_tangent = system.no_tangent
+        #: right-hand side of the normal rows of closed nodes: -rho (N u)_i = -rho g_i
+        self._gap_rhs = -system.rho * system.gap if system.has_gap else None
         B = sp.vstack([N, T]).tocsc()
         BT_local = B[:, self.r0:self.r1].T.tocsr()
         self.upper = sp.hstack([self.K_local, BT_local]).tocsr()
@@ -272,7 +278,9 @@ class DirNeuSolver:
         A_t = (~Z.it).astype(float)
         rows_n = sp.hstack([sp.diags(A_nu) @ (-rho * self.N), sp.diags(Z.nu.astype(float)), sp.csr_matrix((m, m))])
         sgn = Z.tp.astype(float) - Z.tm.astype(float)
-        rows_t = sp.hstack([sp.diags(A_t) @ (-rho * self.T), sp.diags(-F * sgn), sp.diags(Z.it.astype(float))])
+        # a sticking node without tangential DOFs (zero row of T) has the row lam_t,i = 0 instead of 0 = 0
+        lt_diag = (Z.it | (~Z.it & self.no_tangent)).astype(float)
+        rows_t = sp.hstack([sp.diags(A_t) @ (-rho * self.T), sp.diags(-F * sgn), sp.diags(lt_diag)])
         lower = sp.vstack([rows_n, rows_t]).tocsr()
         lower.eliminate_zeros()
         return lower
@@ -325,14 +333,18 @@ class DirNeuSolver:
     def solve(self, Z: InactiveSets, f) -> np.ndarray:
         """y = DirNeu(Z, f) as a whole NumPy vector (u, lam_n, lam_t) on every rank.
 
-        ``f`` is a NumPy array of length n (whole, on every rank)."""
+        ``f`` is a NumPy array of length n (whole, on every rank).  The normal rows of the closed
+        nodes read (N u)_i = g_i (the system's gap): DirNeu is affine in f."""
         f = np.asarray(f, dtype=float)
         if f.shape != (self.n,):
             raise InputError(f"load vector has shape {f.shape}, expected ({self.n},)")
         ksp, J, x, b = self._ksp(Z)
         arr = b.getArray()
-        arr[: self.r1 - self.r0] = f[self.r0:self.r1]
-        arr[self.r1 - self.r0:] = 0.0
+        nloc = self.r1 - self.r0
+        arr[:nloc] = f[self.r0:self.r1]
+        arr[nloc:] = 0.0
+        if self.last and self._gap_rhs is not None:
+            arr[nloc:nloc + self.m] = np.where(Z.nu, 0.0, self._gap_rhs)
         try:
             ksp.solve(b, x)
         except PETSc.Error as exc:
@@ -441,7 +453,7 @@ class Verification:
 
     equilibrium: ||K u + N^T lam_n + T^T lam_t - f|| / max(||f||, ||K u||)
     normal, tangential: max-norm of the 2nd / 3rd block of G(y) in (4) over the force scale
-    cone: max (|lam_t| - F lam_n)_+ ; sign: max (-lam_n)_+ and (N u)_+ (penetration, times rho)
+    cone: max (|lam_t| - F lam_n)_+ ; sign: max (-lam_n)_+ and (N u - g)_+ (penetration, times rho)
     slip_direction: worst violation of "stick => T u = 0, slip+- => +-T u >= 0" (times rho)
     """
 
@@ -462,7 +474,8 @@ class Verification:
 
 
 def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) -> Verification:
-    """Check (1)-(3) at y (a Solution or a flat vector), independently of the sets used to get it."""
+    """Check (1)-(3) at y (a Solution or a flat vector), independently of the sets used to get it.
+    The normal conditions are those with the system's gap g: N u - g <= 0, lam_n^T (N u - g) = 0."""
     y = _as_y(system, y)
     solver = solver or get_solver(system)
     n, m, rho = system.n, system.m, system.rho
@@ -473,7 +486,7 @@ def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) ->
     Ku = solver.K_times(u)
     r = Ku + N.T @ ln + T.T @ lt - fvec
     eq = np.linalg.norm(r) / max(np.linalg.norm(fvec), np.linalg.norm(Ku), 1e-300)
-    Nu, Tu = rho * (N @ u), rho * (T @ u)
+    Nu, Tu = rho * (N @ u - system.gap), rho * (T @ u)  # Nu: rho times the gap left, N u - g
     scale = max(np.abs(ln).max(initial=0), np.abs(lt).max(initial=0), np.abs(Nu).max(initial=0),
                 np.abs(Tu).max(initial=0), 1e-300)
     g2 = ln - np.maximum(0.0, ln + Nu)

@@ -3,10 +3,14 @@
 A :class:`ContactSystem` holds the discrete problem of method.md (1)-(4)::
 
     K u + N^T lam_n + T^T lam_t = f(alpha) = (1 - alpha) f1 + alpha f2
-    N u <= 0, lam_n >= 0, lam_n^T N u = 0, Coulomb's law with coefficient F
+    N u - g <= 0, lam_n >= 0, lam_n^T (N u - g) = 0, Coulomb's law with coefficient F
 
 as PETSc objects (K: n x n AIJ, N and T: m x n AIJ, f1 and f2: Vec) on one MPI
-communicator, plus the friction coefficient F and the augmentation parameter rho.
+communicator, plus the friction coefficient F, the augmentation parameter rho and the
+initial gap g (one value per contact node, fixed in the reference configuration, zero by
+default: g > 0 where the bodies are apart, g < 0 an initial interference).  The gap does
+not depend on alpha, so every branch of a solution path stays affine in alpha; but the
+problem is no longer positively homogeneous in the load (a zero load does not give y = 0).
 Dirichlet DOFs are *eliminated*: K holds free DOFs only, so K is SPD when the
 bodies are clamped.  It can come from the FEM assembly layer
 (:func:`cfcontact.two_blocks`, :func:`cfcontact.assembly.assemble_contact_system`)
@@ -119,6 +123,8 @@ class ContactSystem:
     rho : float > 0: augmentation parameter of (4)
     geometry : ContactGeometry or None: mesh data of a FEM model (pictures, reading results)
     info : dict: free-form description (model parameters, timings of assembly...)
+    gap : (m,) float array (read-only; None -> zeros): initial normal gap g of each contact node,
+        whole on every rank; (N u)_i - g_i <= 0 is non-penetration
     """
 
     K: PETSc.Mat
@@ -130,6 +136,7 @@ class ContactSystem:
     rho: float
     geometry: Optional[ContactGeometry] = None
     info: dict = field(default_factory=dict)
+    gap: Optional[np.ndarray] = None
 
     def __post_init__(self):
         n = self.K.getSize()[0]
@@ -148,6 +155,7 @@ class ContactSystem:
         if not (np.isfinite(self.rho) and self.rho > 0):
             raise InputError(f"rho must be a finite positive number, got {self.rho!r}")
         self.rho = float(self.rho)
+        self.gap = _check_gap(self.gap, m)
         self._cache = {}
 
     # ------------------------------------------------------------------ basics
@@ -170,6 +178,21 @@ class ContactSystem:
     def friction_vector(self) -> np.ndarray:
         """F as an (m,) array."""
         return np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,)).copy()
+
+    @property
+    def has_gap(self) -> bool:
+        """True when some initial gap is not zero."""
+        return bool(np.any(self.gap != 0.0))
+
+    @property
+    def no_tangent(self) -> np.ndarray:
+        """(m,) bool: contact nodes whose row of T is zero (every DOF it would touch is prescribed,
+        e.g. a node on a symmetry plane through the contact zone).  Such a node has no tangential
+        unknown: lam_t,i enters no equation, and DirNeu takes lam_t,i = 0 when it sticks."""
+        if "no_tangent" not in self._cache:
+            T = self.contact_maps()[1]
+            self._cache["no_tangent"] = np.asarray(abs(T).sum(axis=1)).ravel() == 0.0
+        return self._cache["no_tangent"]
 
     def load(self, alpha: float) -> np.ndarray:
         """f(alpha) = (1 - alpha) f1 + alpha f2 as a whole NumPy array (on every rank)."""
@@ -197,7 +220,13 @@ class ContactSystem:
     # ------------------------------------------------------------ variations
     def with_friction(self, friction) -> "ContactSystem":
         """The same system (sharing K, N, T, loads) with another friction coefficient."""
-        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry, dict(self.info))
+        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry, dict(self.info),
+                             self.gap)
+
+    def with_gap(self, gap) -> "ContactSystem":
+        """The same system with another initial gap (an (m,) array, or None for zero)."""
+        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, self.rho, self.geometry,
+                             dict(self.info), gap)
 
     def with_rho(self, rho: float) -> "ContactSystem":
         """The same system with another augmentation parameter rho > 0.  The solutions of (1)-(3)
@@ -205,7 +234,7 @@ class ContactSystem:
         if not (np.isfinite(rho) and rho > 0):
             raise InputError(f"rho must be a finite number > 0, got {rho!r}")
         return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, float(rho), self.geometry,
-                             dict(self.info))
+                             dict(self.info), self.gap)
 
     def with_loads(self, f1, f2) -> "ContactSystem":
         """The same system with other load vectors (NumPy arrays of length n or PETSc Vecs)."""
@@ -219,11 +248,12 @@ class ContactSystem:
                 if f.shape != (self.n,):
                     raise InputError(f"load vector {name} has shape {f.shape}, expected ({self.n},)")
                 vecs.append(linalg.vec_from_numpy(f, self.comm, ranges))
-        return ContactSystem(self.K, self.N, self.T, vecs[0], vecs[1], self.friction, self.rho, self.geometry, dict(self.info))
+        return ContactSystem(self.K, self.N, self.T, vecs[0], vecs[1], self.friction, self.rho, self.geometry,
+                             dict(self.info), self.gap)
 
     # ----------------------------------------------------------- constructors
     @classmethod
-    def from_arrays(cls, K, N, T, f1, f2, friction, rho=None, comm=None, geometry=None) -> "ContactSystem":
+    def from_arrays(cls, K, N, T, f1, f2, friction, rho=None, comm=None, geometry=None, gap=None) -> "ContactSystem":
         """Build a system from NumPy/SciPy data given whole on every rank.
 
         Parameters
@@ -232,6 +262,7 @@ class ContactSystem:
         friction : F >= 0 (scalar or one per contact node)
         rho : augmentation parameter; default :func:`default_rho`
         comm : mpi4py communicator (default COMM_WORLD)
+        gap : (m,) initial gap g, (N u)_i <= g_i (default zero)
         """
         comm = MPI.COMM_WORLD if comm is None else comm
         K = _as_csr("K", K)
@@ -259,6 +290,7 @@ class ContactSystem:
         if empty.size:
             raise InputError(f"contact nodes {empty.tolist()} have zero rows in both N and T (fully clamped?)")
         _check_friction(friction, m)
+        gap = _check_gap(gap, m)
         if rho is None:
             rho = default_rho(K, N, T)
         ranges = linalg.ownership(n, comm)
@@ -271,10 +303,12 @@ class ContactSystem:
             friction=friction,
             rho=rho,
             geometry=geometry,
+            gap=gap,
         )
 
     def __repr__(self):
-        return f"ContactSystem(n={self.n}, m={self.m}, friction={self.friction!r}, rho={self.rho:.4g})"
+        gap = f", gap in [{self.gap.min():.3g}, {self.gap.max():.3g}]" if self.has_gap else ""
+        return f"ContactSystem(n={self.n}, m={self.m}, friction={self.friction!r}, rho={self.rho:.4g}{gap})"
 
 
 def _as_csr(name, A):
@@ -309,3 +343,28 @@ def _check_friction(friction, m):
     if bad.size:
         raise InputError(f"friction coefficients must be finite and >= 0; nodes {bad.tolist()} have {arr[bad].tolist()}")
     return arr.copy()
+
+
+def _check_gap(gap, m):
+    """The initial gap as a read-only (m,) float array (zeros for None)."""
+    if gap is None:
+        arr = np.zeros(m)
+    elif np.ndim(gap) == 0 and not isinstance(gap, str):  # one number for every node
+        try:
+            arr = np.full(m, float(gap))
+        except (TypeError, ValueError):
+            raise InputError(f"gap must be a number or one number per contact node, got {gap!r}") from None
+        if not np.isfinite(arr).all():
+            raise InputError(f"gap must be finite, got {gap!r}")
+    else:
+        try:
+            arr = np.array(gap, dtype=float).reshape(-1) if np.ndim(gap) <= 1 else np.array(gap, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"gap must be one number per contact node, got {gap!r}") from None
+        if arr.shape != (m,):
+            raise InputError(f"gap must have one value per contact node (shape ({m},)), got shape {arr.shape}")
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise InputError(f"gap must be finite; nodes {bad[:10].tolist()} have {arr[bad[:10]].tolist()}")
+    arr.setflags(write=False)
+    return arr

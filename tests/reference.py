@@ -1,8 +1,8 @@
 """Independent references for the tests (no cfcontact import here).
 
 one_node_solutions: the closed-form solutions of method.md's one-node problem.
-frictionless_dual: F = 0 solved as the dual QP min_{lam >= 0} 1/2 lam^T S lam - lam^T w
-by SciPy's NNLS on a Cholesky factor (S = N K^-1 N^T, w = N K^-1 f).
+frictionless_dual: F = 0 solved as the dual QP min_{lam >= 0} 1/2 lam^T S lam - lam^T (w - g)
+by SciPy's NNLS on a Cholesky factor (S = N K^-1 N^T, w = N K^-1 f, g the initial gap).
 """
 
 import numpy as np
@@ -36,8 +36,8 @@ def one_node_solutions(K, F, f):
     return sols
 
 
-def frictionless_dual(K, N, f):
-    """(u, lam) of the frictionless problem K u + N^T lam = f, N u <= 0, lam >= 0, lam^T N u = 0."""
+def frictionless_dual(K, N, f, gap=None):
+    """(u, lam) of the frictionless problem K u + N^T lam = f, N u <= g, lam >= 0, lam^T (N u - g) = 0."""
     K = sp.csc_matrix(K)
     N = sp.csr_matrix(N)
     lu = spla.splu(K)
@@ -45,8 +45,10 @@ def frictionless_dual(K, N, f):
     S = N @ KinvNT
     S = 0.5 * (S + S.T)
     w = N @ lu.solve(f)
+    if gap is not None:
+        w = w - np.asarray(gap, dtype=float)
     L = la.cholesky(S, lower=True)  # S = L L^T
-    # 1/2 lam^T S lam - lam^T w = 1/2 ||L^T lam - L^-1 w||^2 + const
+    # 1/2 lam^T S lam - lam^T w = 1/2 ||L^T lam - L^-1 w||^2 + const  (w includes -g)
     b = la.solve_triangular(L, w, lower=True)
     lam, _ = opt.nnls(L.T, b, maxiter=50 * S.shape[0])
     u = lu.solve(f - N.T @ lam)
