@@ -10,6 +10,7 @@ from cfcontact.errors import (
     EnumerationTooLarge,
     GeometryError,
     InputError,
+    PairingWarning,
     PathError,
     SingularSystemError,
 )
@@ -55,7 +56,8 @@ def __getattr__(name):
 
 
 __all__ = [
-    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError", "PathError",
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError", "PairingWarning",
+    "PathError",
     "SingularSystemError", "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver",
     "inactive_sets", "is_fixed_point", "ssnm", "verify", "ContactGeometry", "ContactSystem", *_LAZY,
 ]

@@ -13,21 +13,27 @@ Pipeline (every step runs on all ranks of ``comm``; gmsh is used on rank 0 only)
    boundary pieces, body forces) are assembled by dolfinx, in parallel;
 3. everything is renumbered to the project's rank-independent numbering: nodes in
    the order of the gmsh node tags (compressed to ``0..P-1``), free DOFs ordered by
-   (node, component) after elimination of the Dirichlet DOFs of the clamped pieces
-   (both components of every node of a clamped piece are fixed to zero);
-4. the contact pairs are found by matching the nodes of ``contact1`` and
-   ``contact2`` by coordinates; the normal at a pair is the normalised average of
-   the outer normals of body 1 on its adjacent ``contact1`` facets, computed from
-   the geometry; ``t = (-n_y, n_x)``.  Pairs whose nodes are all clamped are
-   dropped; pairs are ordered along the interface.  Without ``body2`` /
-   ``contact2`` the contact is against a rigid foundation (N, T have body-1
-   entries only).
+   (node, component) after elimination of the Dirichlet DOFs: both components of every
+   node of a clamped piece, and the components named in ``dirichlet`` (rollers, symmetry
+   planes, prescribed displacements u_D(alpha) = (1 - alpha) u_D^1 + alpha u_D^2, which enter
+   the loads as f_k -= K_fD u_D^k: affine in alpha like the loads themselves);
+4. the contact pairs (:mod:`cfcontact.pairing`): ``pairing="node"`` matches the nodes
+   of ``contact1`` and ``contact2`` by coordinates (a conforming interface, no gap), the
+   normal at a pair being the normalised average of the outer normals of body 1 on its
+   adjacent ``contact1`` facets; ``pairing="segment"`` projects each node of the slave
+   boundary (``contact1`` or ``contact2``) along its outer normal onto the other boundary
+   (node to segment, with the initial gap), or onto a rigid ``obstacle`` (a line or a
+   circle) for a single body; ``t = (-n_y, n_x)``.  Pairs whose normal row would be zero
+   (every DOF prescribed) are dropped; pairs are ordered along the interface.  Without
+   ``body2`` / ``contact2`` and without an obstacle the contact is against a rigid
+   foundation along ``contact1`` (N, T have body-1 entries only, no gap).
 """
 
 from __future__ import annotations
 
 import os
 import time
+import warnings
 from typing import Mapping
 
 import numpy as np
@@ -36,8 +42,8 @@ from mpi4py import MPI
 
 import ufl
 
-from cfcontact import compat, linalg
-from cfcontact.errors import GeometryError, InputError
+from cfcontact import compat, linalg, pairing as pairing_mod
+from cfcontact.errors import GeometryError, InputError, PairingWarning
 from cfcontact.system import ContactGeometry, ContactSystem, default_rho
 
 BODY1, BODY2 = 1, 2
@@ -567,6 +573,11 @@ def assemble_contact_system(
     comm=None,
     match_tol=1e-8,
     info=None,
+    dirichlet=None,
+    pairing=None,
+    slave="contact1",
+    search_distance=None,
+    obstacle=None,
 ) -> ContactSystem:
     """Assemble the discrete contact problem of a tagged 2-D gmsh model.
 
@@ -590,37 +601,84 @@ def assemble_contact_system(
     rho : augmentation parameter (default :func:`cfcontact.system.default_rho`)
     comm : mpi4py communicator (default COMM_WORLD)
     match_tol : contact nodes pair up when closer than ``match_tol * h`` (h: the
-        shortest contact1 facet)
+        shortest contact1 facet); node-to-segment pairing snaps a slave node that close to a
+        master node onto it (node to node, no gap)
     info : extra entries for ``ContactSystem.info``
+    dirichlet : ``{boundary piece: {"x": value, "y": value}}`` prescribed displacement
+        components (either or both): a number (the same along the path) or a pair
+        ``(value at alpha = 0, value at alpha = 1)``, so that u_D(alpha) = (1 - alpha) u_D^1 +
+        alpha u_D^2, e.g. ``{"left1": {"x": 0}, "top1": {"y": (0, -1e-3)}}`` (a roller on left1,
+        an indentation depth growing along the path on top1).  Pieces also in ``clamp`` must
+        agree (clamped: both components 0).  Non-zero values on a contact boundary are refused
+        (they would make the gap depend on alpha); zero ones (symmetry planes) are fine.
+    pairing : ``"node"`` (default without an obstacle: matching interface, nodes coincide pairwise)
+        or ``"segment"`` (default with an obstacle: node-to-segment projection with an initial
+        gap, non-matching meshes allowed; see :mod:`cfcontact.pairing`)
+    slave : the boundary whose nodes are projected with ``pairing="segment"``: ``"contact1"``
+        (default) or ``"contact2"`` (name or number); its nodes are the contact nodes
+    search_distance : node-to-segment pairing leaves out slave nodes farther than this from the
+        master (measured along their normal); None: no limit.  Left-out nodes get one warning
+        (:class:`~cfcontact.errors.PairingWarning`) and are listed in ``info["contact"]``.
+    obstacle : a rigid obstacle as master of body 1 (the model has no body2):
+        ``{"kind": "line", "point": (x, y), "normal": (nx, ny)}`` (the half-plane behind the
+        line; ``normal`` points out of it, toward the body) or ``{"kind": "circle", "center":
+        (x, y), "radius": R}`` (a rigid disc), or a :class:`cfcontact.pairing.Line` /
+        :class:`~cfcontact.pairing.Circle`.  Its rows of N and T involve body 1's DOFs only.
+
+    Returns a :class:`ContactSystem` whose ``gap`` is the initial gap of each pair and whose
+    ``info["contact"]`` describes the pairing (pairs, excluded nodes, gap range).
 
     Raises
     ------
-    GeometryError : missing mandatory groups, unknown tags, non-matching interface
-    InputError : bad material or load data, a body without Dirichlet condition
+    GeometryError : missing mandatory groups, unknown tags, non-matching interface (with
+        ``pairing="node"``), a slave that is not a contact boundary, an obstacle that does not face
+        the body
+    InputError : bad material, load, Dirichlet or pairing data, a body without Dirichlet condition,
+        a non-zero prescribed displacement on a contact node
     """
     t_start = time.perf_counter()
     comm = MPI.COMM_WORLD if comm is None else comm
     check_material(E, nu, plane)  # validate before any collective work
+    obstacle = pairing_mod.make_obstacle(obstacle)
+    pairing = pairing_mod.check_pairing(("segment" if obstacle is not None else "node") if pairing is None else pairing)
+    if obstacle is not None and pairing != "segment":
+        raise InputError("an obstacle is paired node to segment: use pairing='segment' (or leave pairing out)")
+    search_distance = pairing_mod.check_search_distance(search_distance)
+    _check_dirichlet_shape(dirichlet)
     fem = _FemModel(model_or_path, comm)
     groups = fem.groups
     P = len(fem.points)
     rigid = (2, BODY2) not in groups
+    if obstacle is not None and not rigid:
+        raise GeometryError("an obstacle is the master of a single body, but the model has body2 (2-D group 2); "
+                            "leave body2/contact2 out, or pair the two bodies (pairing='segment', no obstacle)")
+    contacts = "contact1=10" + ("" if rigid else " or contact2=20")
+    try:
+        slave_tag = _resolve_tag(slave, groups, 1, "slave")
+    except GeometryError:
+        raise GeometryError(f"slave must be a contact boundary ({contacts}), got {slave!r}, which is not a "
+                            f"boundary piece of the model") from None
+    if slave_tag not in (CONTACT1, CONTACT2):
+        raise GeometryError(f"slave must be a contact boundary ({contacts}), got {slave!r} "
+                            f"({_tag_label(groups, 1, slave_tag)})")
+    if slave_tag == CONTACT2 and obstacle is not None:
+        raise GeometryError("with an obstacle the slave is contact1 (the body's contact boundary)")
 
     # ---------------------------------------------------------------- inputs
     if isinstance(clamp, (str, int, np.integer)):
         clamp = (clamp,)
     clamp_tags = [_resolve_tag(c, groups, 1, "clamp") for c in (clamp or ())]
+    dir_items = _parse_dirichlet(dirichlet, groups)
     trac = [_parse_tractions(tractions1, groups, "tractions1"), _parse_tractions(tractions2, groups, "tractions2")]
     bforce = [_parse_body_force(body_force1, groups, "body_force1"), _parse_body_force(body_force2, groups, "body_force2")]
 
     # ------------------------------------------------------ Dirichlet / bodies
-    clamped = np.zeros(P, dtype=bool)
-    for tag in clamp_tags:
-        clamped[fem.facet_tag_nodes(tag).ravel()] = True
+    fixed, u_D = _prescribed_dofs(fem, clamp_tags, dir_items, groups)
+    constrained = fixed.any(axis=1)  # nodes with some prescribed component
     tag_bodies = fem.tag_bodies()
     for body in np.unique(fem.cell_body):
         body_nodes = np.unique(fem.cells[fem.cell_body == body])
-        if np.count_nonzero(clamped[body_nodes]) < 2:
+        if np.count_nonzero(constrained[body_nodes]) < 2:
             pieces = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
                       if bs == [int(body)] and t not in (CONTACT1, CONTACT2)]
             used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
@@ -630,9 +688,22 @@ def assemble_contact_system(
                 f"(rigid-body motions). Clamp one of its boundary pieces"
                 + (f", e.g. one of: {', '.join(pieces)}" if pieces else "")
             )
+        for comp, axis in ((0, "x"), (1, "y")):
+            if not fixed[body_nodes, comp].any():
+                raise InputError(f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'}) has no prescribed "
+                                 f"{axis} component: it can move freely in {axis} (its stiffness is singular); "
+                                 f"clamp one of its boundary pieces or prescribe {axis} on one (dirichlet)")
+    contact_nodes_all = np.unique(np.concatenate([fem.facet_tag_nodes(t).ravel() for t in (CONTACT1, CONTACT2)]))
+    moving = fixed & ((u_D[0] != 0.0) | (u_D[1] != 0.0))
+    bad = contact_nodes_all[moving[contact_nodes_all].any(axis=1)]
+    if bad.size:
+        where = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in fem.points[bad[:6]]) + ("; ..." if bad.size > 6 else "")
+        raise InputError(f"non-zero prescribed displacement on {bad.size} contact node(s) at {where}: it would make "
+                         "the initial gap depend on alpha; prescribe displacements away from contact1/contact2 "
+                         "(zero components there, e.g. symmetry planes or rollers, are fine)")
 
     # canonical numbering: free DOFs by (node, component)
-    free = np.repeat(~clamped, 2)
+    free = ~fixed.ravel()
     canon = np.full(2 * P, -1, dtype=np.int64)
     n = int(np.count_nonzero(free))
     canon[free] = np.arange(n)
@@ -642,6 +713,7 @@ def assemble_contact_system(
     # ------------------------------------------------------------- stiffness
     t0 = time.perf_counter()
     nr, cr, nc, cc, v = fem.stiffness_triplets(E, nu, plane)
+    lift = _lifting(canon, 2 * nr + cr, 2 * nc + cc, v, u_D)  # K_fD u_D^k of the prescribed displacements
     r = canon[2 * nr + cr]
     c = canon[2 * nc + cc]
     keep = (r >= 0) & (c >= 0)
@@ -661,25 +733,35 @@ def assemble_contact_system(
         ln, lc, lv = fem.assemble_load(compiled, consts, values)
         idx = canon[2 * ln + lc]
         keep = idx >= 0
-        loads.append(linalg.vec_from_triplets(idx[keep], lv[keep], n, comm))
+        li, lval = lift[k]
+        loads.append(linalg.vec_from_triplets(np.concatenate([idx[keep], li]), np.concatenate([lv[keep], -lval]), n, comm))
     t_assemble = time.perf_counter() - t0
 
     # --------------------------------------------------------------- contact
-    pairs, normals, tangents = _contact_pairs(fem, clamped, rigid, match_tol)
-    m = len(pairs)
+    pr = _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol)
+    # drop pairs whose normal row would be zero (every DOF it touches is prescribed)
+    pair_of, node_of, fac_of = pr.entries()
+    live = np.zeros(pr.m, dtype=bool)
+    for comp in (0, 1):
+        ok = (canon[2 * node_of + comp] >= 0) & (pr.normals[pair_of, comp] != 0.0)
+        live[pair_of[ok]] = True
+    dropped = int(np.count_nonzero(~live))
+    pr = pr.select(live)
+    pr = pr.select(pairing_mod.order_along_interface(fem.points, pr.slave, pr.tangents))
+    m = pr.m
+    normals, tangents = pr.normals, pr.tangents
     rows, cols, nvals, tvals = [], [], [], []
     if comm.rank == 0:
-        for i, (a, b) in enumerate(pairs):
-            for node, sign in ((a, 1.0), (b, -1.0)):
-                if node < 0:
-                    continue
-                for comp in (0, 1):
-                    d = canon[2 * node + comp]
-                    if d >= 0:
-                        rows.append(i)
-                        cols.append(d)
-                        nvals.append(sign * normals[i, comp])
-                        tvals.append(sign * tangents[i, comp])
+        pair_of, node_of, fac_of = pr.entries()
+        order = np.lexsort((node_of, pair_of))  # per pair: its nodes in index order (fixed)
+        for i, node, fac in zip(pair_of[order], node_of[order], fac_of[order]):
+            for comp in (0, 1):
+                d = canon[2 * node + comp]
+                if d >= 0:
+                    rows.append(i)
+                    cols.append(d)
+                    nvals.append(fac * normals[i, comp])
+                    tvals.append(fac * tangents[i, comp])
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
     nvals = np.asarray(nvals, dtype=float)
@@ -687,6 +769,11 @@ def assemble_contact_system(
     nk, tk = nvals != 0.0, tvals != 0.0
     N = linalg.mat_from_triplets(rows[nk], cols[nk], nvals[nk], (m, n), comm)
     T = linalg.mat_from_triplets(rows[tk], cols[tk], tvals[tk], (m, n), comm)
+    contact_meta = _pairing_meta(pr, fem.points, pairing, slave_tag, groups, search_distance, obstacle, dropped)
+    if pr.excluded.size and comm.rank == 0:
+        master = "the obstacle" if obstacle is not None else _tag_label(groups, 1, CONTACT1 + CONTACT2 - slave_tag)
+        warnings.warn(pr.exclusion_message(fem.points, _tag_label(groups, 1, slave_tag), master), PairingWarning,
+                      stacklevel=2)
 
     if rho is None:
         diag = linalg.gather_vec(K.getDiagonal())
@@ -697,7 +784,7 @@ def assemble_contact_system(
         NT = comm.bcast(NT, root=0)
         rho = default_rho(sp.diags(diag), *NT)
 
-    pair_array = np.asarray(pairs, dtype=np.int64).reshape(m, 2)
+    pair_array = pr.body_nodes()
     geometry = ContactGeometry(
         points=fem.points.copy(),
         cells=fem.cells.copy(),
@@ -705,9 +792,12 @@ def assemble_contact_system(
         dof_node=dof_node,
         dof_comp=dof_comp,
         contact_nodes=pair_array,
-        contact_points=fem.points[pair_array[:, 0]].reshape(m, 2),
+        contact_points=fem.points[pr.slave].reshape(m, 2),
         normals=normals,
         tangents=tangents,
+        tributary=pr.tributary.copy(),
+        prescribed=_prescribed_table(fixed, u_D),
+        obstacle=None if obstacle is None else obstacle.to_dict(),
     )
     label = {t: _tag_label(groups, 1, t) for t in set(clamp_tags) | set(tag_numbers)}
     meta = {
@@ -717,6 +807,8 @@ def assemble_contact_system(
         "nu": _material_meta(nu, groups),
         "plane": plane,
         "clamp": [label[t] for t in clamp_tags],
+        "dirichlet": _dirichlet_meta(dir_items, groups),
+        "contact": contact_meta,
         "tractions1": _tractions_meta(trac[0], label),
         "tractions2": _tractions_meta(trac[1], label),
         "body_force1": {str(b): vec.tolist() for b, vec in bforce[0].items()},
@@ -734,85 +826,170 @@ def assemble_contact_system(
         meta.update(info)
     geometry.material = {"E": meta["E"], "nu": meta["nu"], "plane": meta["plane"]}  # saved with a path
     return ContactSystem(K=K, N=N, T=T, f1=loads[0], f2=loads[1], friction=friction, rho=rho,
-                         geometry=geometry, info=meta)
+                         geometry=geometry, info=meta, gap=pr.gap)
 
 
-def _contact_pairs(fem, clamped, rigid, match_tol):
-    """Contact pairs (m, 2) (body-1 node, body-2 node or -1), normals and tangents (m, 2)."""
-    from scipy.spatial import cKDTree
-
+def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol):
+    """The contact pairs (:class:`cfcontact.pairing.Pairing`) of the model, in slave node order."""
     pts = fem.points
     f1 = fem.facet_tag_nodes(CONTACT1)
     if len(f1) == 0:
         raise GeometryError("contact1 (1-D group 10) has no facets in the mesh")
     if np.any(fem.node_body[f1.ravel()] != BODY1):
         raise GeometryError("contact1 (1-D group 10) must lie on the boundary of body1 (2-D group 1)")
-    cent = fem.facet_centroid[fem.facet_tag == CONTACT1]
-    # outer normals of body 1 on its contact facets, averaged at the nodes
-    d = pts[f1[:, 1]] - pts[f1[:, 0]]
-    length = np.hypot(d[:, 0], d[:, 1])
-    if np.any(length <= 0):
-        raise GeometryError("contact1 has facets of zero length")
-    fn = np.column_stack([d[:, 1], -d[:, 0]]) / length[:, None]
-    mid = 0.5 * (pts[f1[:, 1]] + pts[f1[:, 0]])
-    outward = np.sum(fn * (mid - cent), axis=1)
-    fn[outward < 0] *= -1.0
-    nodes1 = np.unique(f1)
-    acc = np.zeros((len(nodes1), 2))
-    pos = np.searchsorted(nodes1, f1)
-    order = np.lexsort((f1[:, 1], f1[:, 0]))  # fixed summation order
-    for j in order:
-        acc[pos[j, 0]] += fn[j]
-        acc[pos[j, 1]] += fn[j]
-    norm = np.hypot(acc[:, 0], acc[:, 1])
-    if np.any(norm < 1e-12):
-        bad = nodes1[norm < 1e-12]
-        raise GeometryError(f"contact1 normal undefined at node(s) {pts[bad].tolist()} (facets with opposite normals)")
-    normal1 = acc / norm[:, None]
-    h = float(length.min())
+    cent1 = fem.facet_centroid[fem.facet_tag == CONTACT1]
+    _, length1 = pairing_mod.facet_normals(pts, f1, cent1)
+    h = float(length1.min())
     tol = float(match_tol) * h
-
+    if obstacle is not None:
+        return pairing_mod.obstacle_pairing(pts, f1, cent1, obstacle, search_distance=search_distance)
+    nodes1, normal1 = pairing_mod.node_normals(pts, f1, cent1, "contact1")
+    trib1 = pairing_mod.tributary_lengths(pts, f1, nodes1)
+    k = len(nodes1)
     if rigid:
-        partner = np.full(len(nodes1), -1, dtype=np.int64)
-    else:
-        f2 = fem.facet_tag_nodes(CONTACT2)
-        if len(f2) == 0:
-            raise GeometryError("contact2 (1-D group 20) has no facets in the mesh")
-        if np.any(fem.node_body[f2.ravel()] != BODY2):
-            raise GeometryError("contact2 (1-D group 20) must lie on the boundary of body2 (2-D group 2)")
-        nodes2 = np.unique(f2)
-        dist12, j12 = cKDTree(pts[nodes2]).query(pts[nodes1])
-        dist21, j21 = cKDTree(pts[nodes1]).query(pts[nodes2])
-        bad1 = np.flatnonzero(dist12 > tol)
-        bad2 = np.flatnonzero(dist21 > tol)
-        if bad1.size or bad2.size:
-            lines = []
-            for bad, nodes, dist, mine, other in ((bad1, nodes1, dist12, "contact1", "contact2"),
-                                                  (bad2, nodes2, dist21, "contact2", "contact1")):
-                for k in bad[:10]:
-                    x, y = pts[nodes[k]]
-                    lines.append(f"{mine} node at ({x:.6g}, {y:.6g}): nearest {other} node at distance {dist[k]:.3g}")
-                if bad.size > 10:
-                    lines.append(f"... and {bad.size - 10} more {mine} nodes")
-            raise GeometryError(
-                f"non-matching contact interface: {bad1.size} contact1 node(s) and {bad2.size} contact2 node(s) "
-                f"have no partner within {tol:.3g} (match_tol={match_tol:g} x shortest contact facet {h:.3g}); "
-                "the nodes of contact1 and contact2 must coincide pairwise:\n  " + "\n  ".join(lines))
-        partner = nodes2[j12]
-        if np.unique(partner).size != partner.size or nodes2.size != nodes1.size:
-            raise GeometryError("contact1 and contact2 nodes do not pair one-to-one (match_tol too large?)")
+        if pairing == "segment":
+            raise GeometryError("pairing='segment' needs a master: contact2 (body2) or an obstacle")
+        return pairing_mod.Pairing(nodes1, np.full((k, 2), -1, dtype=np.int64), np.zeros((k, 2)), normal1,
+                                   np.zeros(k), trib1, 1)
+    f2 = fem.facet_tag_nodes(CONTACT2)
+    if len(f2) == 0:
+        raise GeometryError("contact2 (1-D group 20) has no facets in the mesh")
+    if np.any(fem.node_body[f2.ravel()] != BODY2):
+        raise GeometryError("contact2 (1-D group 20) must lie on the boundary of body2 (2-D group 2)")
+    cent2 = fem.facet_centroid[fem.facet_tag == CONTACT2]
+    if pairing == "node":
+        partner = pairing_mod.match_nodes(pts, nodes1, np.unique(f2), tol, match_tol, h)
+        master = np.column_stack([partner, np.full(k, -1)]).astype(np.int64)
+        weights = np.column_stack([np.ones(k), np.zeros(k)])
+        return pairing_mod.Pairing(nodes1, master, weights, normal1, np.zeros(k), trib1, 1)
+    if slave_tag == CONTACT1:
+        return pairing_mod.node_to_segment(pts, f1, cent1, f2, cent2, slave_body=1, search_distance=search_distance,
+                                           snap=tol, slave_name="contact1", master_name="contact2")
+    return pairing_mod.node_to_segment(pts, f2, cent2, f1, cent1, slave_body=2, search_distance=search_distance,
+                                       snap=tol, slave_name="contact2", master_name="contact1")
 
-    # drop fully clamped pairs
-    keep = ~(clamped[nodes1] & ((partner < 0) | clamped[np.maximum(partner, 0)]))
-    nodes1, partner, normal1 = nodes1[keep], partner[keep], normal1[keep]
-    tangent1 = np.column_stack([-normal1[:, 1], normal1[:, 0]])
-    # order along the interface: by the coordinate along the mean tangent
-    if len(nodes1):
-        tbar = tangent1.sum(axis=0)
-        if np.hypot(*tbar) < 1e-12 * len(nodes1):
-            tbar = tangent1[0]
-        s = pts[nodes1] @ (tbar / np.hypot(*tbar))
-        order = np.lexsort((nodes1, s))
-        nodes1, partner, normal1, tangent1 = nodes1[order], partner[order], normal1[order], tangent1[order]
-    pairs = np.column_stack([nodes1, partner]).astype(np.int64).reshape(-1, 2)
-    return pairs, normal1.reshape(-1, 2), tangent1.reshape(-1, 2)
+
+def _pairing_meta(pr, points, pairing, slave_tag, groups, search_distance, obstacle, dropped):
+    """``info["contact"]``: how the contact pairs were formed (for ``cfcontact info``)."""
+    excluded = np.asarray(points)[pr.excluded]
+    return {
+        "pairing": pairing,
+        "slave": _tag_label(groups, 1, slave_tag) if pairing == "segment" and obstacle is None else
+        _tag_label(groups, 1, CONTACT1),
+        "search_distance": search_distance,
+        "obstacle": None if obstacle is None else obstacle.to_dict(),
+        "pairs": pr.m,
+        "excluded": int(pr.excluded.size),
+        "excluded_points": excluded[:50].tolist(),
+        "excluded_reasons": {r: int(np.sum(pr.excluded_reason == r)) for r in np.unique(pr.excluded_reason)},
+        "dropped_prescribed": dropped,
+        "gap_range": [float(pr.gap.min()), float(pr.gap.max())] if pr.m else [0.0, 0.0],
+    }
+
+
+# ======================================================== Dirichlet conditions
+DIRICHLET_COMPONENTS = {"x": 0, "y": 1}
+
+
+def _check_dirichlet_shape(dirichlet):
+    """Validate the form of ``dirichlet`` before any collective work (tags are resolved later)."""
+    if dirichlet is None:
+        return
+    if not isinstance(dirichlet, Mapping):
+        raise InputError(f"dirichlet must be a dict {{boundary piece: {{'x': value, 'y': value}}}}, "
+                         f"got {type(dirichlet).__name__}")
+    for spec, comps in dirichlet.items():
+        _dirichlet_components(comps, f"dirichlet[{spec!r}]")
+
+
+def _dirichlet_components(comps, what):
+    """{"x": v, "y": v} -> {component: (value at alpha = 0, value at alpha = 1)}."""
+    if not isinstance(comps, Mapping) or not comps:
+        raise InputError(f"{what} must be a dict with the components 'x' and/or 'y', e.g. {{'y': 0}}, got {comps!r}")
+    out = {}
+    for key, value in comps.items():
+        if key not in DIRICHLET_COMPONENTS:
+            raise InputError(f"{what}: unknown component {key!r}; use 'x' and/or 'y'")
+        try:
+            if isinstance(value, (bool, np.bool_)) or isinstance(value, str):
+                raise TypeError
+            arr = np.asarray(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if arr.size == 1:
+            arr = np.repeat(arr, 2)
+        if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+            raise InputError(f"{what}[{key!r}] must be a number or a pair (value at alpha = 0, value at alpha = 1), "
+                             f"got {value!r}")
+        out[DIRICHLET_COMPONENTS[key]] = (float(arr[0]), float(arr[1]))
+    return out
+
+
+def _parse_dirichlet(dirichlet, groups):
+    """{(tag, component): (v1, v2)} of ``dirichlet`` (tags by name or number)."""
+    out = {}
+    for spec, comps in (dirichlet or {}).items():
+        tag = _resolve_tag(spec, groups, 1, "dirichlet")
+        for comp, vals in _dirichlet_components(comps, f"dirichlet[{spec!r}]").items():
+            if (tag, comp) in out and out[(tag, comp)] != vals:
+                raise InputError(f"dirichlet gives {_tag_label(groups, 1, tag)} two values for {'xy'[comp]}")
+            out[(tag, comp)] = vals
+    return out
+
+
+def _prescribed_dofs(fem, clamp_tags, dir_items, groups):
+    """(fixed (P, 2) bool, (u_D^1, u_D^2) (P, 2) each) of the clamped pieces and ``dirichlet``;
+    InputError when two pieces prescribe different values on one node component."""
+    P = len(fem.points)
+    fixed = np.zeros((P, 2), dtype=bool)
+    vals = np.zeros((2, P, 2))
+    source = {}
+    items = [((t, c), (0.0, 0.0), f"clamp {_tag_label(groups, 1, t)}") for t in clamp_tags for c in (0, 1)]
+    items += [(key, v, f"dirichlet {_tag_label(groups, 1, key[0])}") for key, v in dir_items.items()]
+    for (tag, comp), (v1, v2), label in items:
+        nodes = np.unique(fem.facet_tag_nodes(tag))
+        clash = nodes[fixed[nodes, comp] & ((vals[0, nodes, comp] != v1) | (vals[1, nodes, comp] != v2))]
+        if clash.size:
+            x, y = fem.points[clash[0]]
+            other = source[(int(clash[0]), comp)]
+            raise InputError(f"node ({x:.6g}, {y:.6g}) gets two prescribed {'xy'[comp]} displacements: {other} "
+                             f"{tuple(vals[:, clash[0], comp].tolist())} and {label} {(v1, v2)} (values at alpha = 0 "
+                             f"and 1); make them agree or leave the node to one piece")
+        fixed[nodes, comp] = True
+        vals[0, nodes, comp], vals[1, nodes, comp] = v1, v2
+        for node in nodes.tolist():
+            source.setdefault((node, comp), label)
+    return fixed, vals
+
+
+def _lifting(canon, gr, gc, v, u_D):
+    """For each load k: (free DOF, value) triplets of K_fD u_D^k, with K's symmetrisation
+    ((A + A^T) / 2 of the owned stiffness triplets (gr, gc, v), full DOF indices 2 node + comp)."""
+    out = []
+    for k in range(2):
+        uk = u_D[k].ravel()
+        if not uk.any():
+            out.append((np.zeros(0, dtype=np.int64), np.zeros(0)))
+            continue
+        r, c = canon[gr], canon[gc]
+        a = (r >= 0) & (c < 0) & (uk[gc] != 0.0)  # A_fD
+        b = (c >= 0) & (r < 0) & (uk[gr] != 0.0)  # (A_Df)^T
+        out.append((np.concatenate([r[a], c[b]]), 0.5 * np.concatenate([v[a] * uk[gc[a]], v[b] * uk[gr[b]]])))
+    return out
+
+
+def _prescribed_table(fixed, u_D):
+    """(k, 4) [node, component, value at alpha = 0, value at alpha = 1] of the non-zero prescribed
+    displacements (``ContactGeometry.prescribed``), or None."""
+    nz = fixed & ((u_D[0] != 0.0) | (u_D[1] != 0.0))
+    node, comp = np.nonzero(nz)
+    if not node.size:
+        return None
+    return np.column_stack([node, comp, u_D[0][node, comp], u_D[1][node, comp]]).astype(float)
+
+
+def _dirichlet_meta(dir_items, groups):
+    out = {}
+    for (tag, comp), (v1, v2) in sorted(dir_items.items()):
+        out.setdefault(_tag_label(groups, 1, tag), {})["xy"[comp]] = [v1, v2]
+    return out

@@ -51,3 +51,8 @@ class PathError(CfcontactError):
 
 class EnumerationTooLarge(InputError):
     """Exhaustive enumeration refused because the problem is too large."""
+
+
+class PairingWarning(UserWarning):
+    """Contact pairing left some slave nodes out (their normal misses the master, meets only its
+    back, or meets it farther than the search distance).  Not an error: the model is built."""

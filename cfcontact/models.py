@@ -92,6 +92,11 @@ def two_blocks(
     height2=None,
     foundation=False,
     match_tol=1e-8,
+    dirichlet=None,
+    pairing=None,
+    slave="contact1",
+    search_distance=None,
+    obstacle=None,
 ):
     """The seed's two stacked blocks as a :class:`cfcontact.system.ContactSystem`.
 
@@ -113,9 +118,12 @@ def two_blocks(
     counter-clockwise about the origin) is not zero.
 
     ``foundation=True`` builds body 1 alone on a rigid foundation (clamp default
-    ``("left1",)``).  ``nx2, ny2, height2`` set body 2's mesh separately (``nx2 !=
-    nx`` makes a non-matching interface, which is rejected).  The remaining
-    arguments go to :func:`cfcontact.assembly.assemble_contact_system`.
+    ``("left1",)``), or against a rigid ``obstacle`` (a line or a circle, see
+    :func:`cfcontact.assembly.assemble_contact_system`).  ``nx2, ny2, height2`` set body 2's
+    mesh separately: ``nx2 != nx`` makes a non-matching interface, which needs
+    ``pairing="segment"`` (node-to-segment; with the default node pairing it is rejected).
+    ``dirichlet``, ``pairing``, ``slave``, ``search_distance`` and the remaining arguments go to
+    :func:`cfcontact.assembly.assemble_contact_system`.
     """
     from mpi4py import MPI
 
@@ -134,7 +142,8 @@ def two_blocks(
         tractions2=_rotate_loads(tractions2, angle, "traction"),
         body_force1=_rotate_loads(body_force1, angle, "body"),
         body_force2=_rotate_loads(body_force2, angle, "body"),
-        friction=friction, rho=rho, comm=comm, match_tol=match_tol,
+        friction=friction, rho=rho, comm=comm, match_tol=match_tol, dirichlet=dirichlet,
+        pairing=pairing, slave=slave, search_distance=search_distance, obstacle=obstacle,
     )
     info = {"model": "two_blocks", "model_parameters": dict(params, foundation=bool(foundation))}
     if comm.rank == 0:
@@ -166,6 +175,10 @@ def arc_on_block(
     rho=None,
     comm=None,
     match_tol=1e-8,
+    dirichlet=None,
+    pairing=None,
+    slave="contact1",
+    search_distance=None,
 ):
     """A body with a convex circular-arc bottom in a matching concave seat: a curved interface.
 
@@ -180,7 +193,7 @@ def arc_on_block(
     The interface is **conforming** (the bodies touch along the whole arc; initial gaps are not
     modelled).  Default clamps: ``left1`` (side of body 1) and ``bottom2`` (base of the seat);
     default loads as in :func:`two_blocks` on ``top1``.  Tags: ``top1, right1, left1, bottom2,
-    right2, left2``.  The remaining arguments go to
+    right2, left2``.  The remaining arguments (``dirichlet``, ``pairing``...) go to
     :func:`cfcontact.assembly.assemble_contact_system`.
     """
     from mpi4py import MPI
@@ -195,7 +208,8 @@ def arc_on_block(
     kwargs = dict(
         E=E, nu=nu, plane=plane, clamp=clamp, tractions1=tractions1, tractions2=tractions2,
         body_force1=body_force1, body_force2=body_force2,
-        friction=friction, rho=rho, comm=comm, match_tol=match_tol,
+        friction=friction, rho=rho, comm=comm, match_tol=match_tol, dirichlet=dirichlet,
+        pairing=pairing, slave=slave, search_distance=search_distance,
     )
     info = {"model": "arc_on_block", "model_parameters": dict(params)}
     if comm.rank == 0:

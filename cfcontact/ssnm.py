@@ -414,7 +414,8 @@ def ssnm(system: ContactSystem, alpha: float = 0.0, y0=None, tol: float = 1e-9, 
 
     y^k = DirNeu(Z(y^{k-1}), f), stopped when ||y^k - y^{k-1}|| <= tol ||y^k||.
     The start y0 (a Solution or a flat vector of length n + 2m) defaults to 0, whose
-    inactive sets are empty (all nodes in contact and sticking).
+    inactive sets are empty (all nodes in contact and sticking) when there is no gap; with an
+    initial gap the nodes with g > 0 are open at y = 0.
 
     Raises ConvergenceError after ``max_iter`` iterations (e.g. when the iteration cycles).
     """

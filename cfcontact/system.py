@@ -56,6 +56,18 @@ class ContactGeometry:
         dicts ``{"body1=1": value, ...}`` with one value per body), as in ``ContactSystem.info``;
         set by the assembly layer and saved with a path, so stresses
         (:func:`cfcontact.fields.von_mises`) can be computed from a saved path.  None: unknown.
+    tributary : (m,) float array or None
+        Length of the contact boundary each contact node stands for (half its adjacent slave
+        facets): lam_n / tributary is the contact pressure.  None: unknown.
+    prescribed : (k, 4) float array or None
+        Non-zero prescribed displacements [node, component, value at alpha = 0, value at
+        alpha = 1] (u_D(alpha) = (1 - alpha) u_D^1 + alpha u_D^2), for
+        :meth:`displacement_field` at a given alpha.  None: every prescribed DOF is zero.
+    obstacle : dict or None
+        The rigid obstacle of a single body (``cfcontact.pairing.Line/Circle.to_dict()``), if any.
+
+    Contact nodes: with node-to-segment pairing the contact node of a pair is its slave node
+    (``contact_points``); ``contact_nodes`` gives it with the master node of larger weight.
     """
 
     points: np.ndarray
@@ -68,31 +80,48 @@ class ContactGeometry:
     normals: np.ndarray
     tangents: np.ndarray
     material: Optional[dict] = None
+    tributary: Optional[np.ndarray] = None
+    prescribed: Optional[np.ndarray] = None
+    obstacle: Optional[dict] = None
+
+    _JSON = ("material", "obstacle")  # stored as JSON text by to_dict
+    _OPTIONAL = ("material", "tributary", "prescribed", "obstacle")
 
     def __post_init__(self):
-        # to_dict() stores the material as a JSON string (a NumPy 0-d str array in an .npz)
-        if isinstance(self.material, (str, np.ndarray)):
-            text = str(self.material)
-            self.material = json.loads(text) if text else None
+        # to_dict() stores the material and the obstacle as JSON strings (0-d str arrays in an .npz)
+        for name in self._JSON:
+            value = getattr(self, name)
+            if isinstance(value, (str, np.ndarray)):
+                text = str(value)
+                setattr(self, name, json.loads(text) if text else None)
 
-    def displacement_field(self, u: np.ndarray) -> np.ndarray:
-        """Nodal displacements (P, 2) from a free-DOF vector u (clamped nodes get 0)."""
+    def displacement_field(self, u: np.ndarray, alpha: Optional[float] = None) -> np.ndarray:
+        """Nodal displacements (P, 2) from a free-DOF vector u: prescribed nodes get 0, or, with
+        ``alpha``, their prescribed values u_D(alpha) (:attr:`prescribed`)."""
         U = np.zeros_like(self.points, dtype=float)
         U[self.dof_node, self.dof_comp] = u
+        if alpha is not None and self.prescribed is not None and len(self.prescribed):
+            tab = np.asarray(self.prescribed, dtype=float).reshape(-1, 4)
+            U[tab[:, 0].astype(int), tab[:, 1].astype(int)] = (1.0 - alpha) * tab[:, 2] + alpha * tab[:, 3]
         return U
 
     def to_dict(self) -> dict:
-        """Plain NumPy arrays (for an .npz; no pickling): the material as a JSON string, if known."""
-        out = {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self) if f.name != "material"}
-        if self.material is not None:
-            out["material"] = np.asarray(json.dumps(self.material))
+        """Plain NumPy arrays (for an .npz; no pickling): the material and obstacle as JSON strings;
+        optional entries only when known."""
+        out = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name in self._OPTIONAL and value is None:
+                continue
+            out[f.name] = np.asarray(json.dumps(value)) if f.name in self._JSON else np.asarray(value)
         return out
 
     @classmethod
     def from_dict(cls, d) -> "ContactGeometry":
-        """Inverse of :meth:`to_dict`; ``material`` is optional (paths saved before it was stored)."""
-        kw = {f.name: np.asarray(d[f.name]) for f in dataclasses.fields(cls) if f.name != "material"}
-        return cls(**kw, material=d["material"] if "material" in d else None)
+        """Inverse of :meth:`to_dict`; the optional entries may be missing (paths saved before them)."""
+        kw = {f.name: np.asarray(d[f.name]) for f in dataclasses.fields(cls) if f.name not in cls._OPTIONAL}
+        kw.update({name: d[name] for name in cls._OPTIONAL if name in d})
+        return cls(**kw)
 
 
 def default_rho(K: sp.spmatrix, N: sp.spmatrix, T: sp.spmatrix) -> float:

@@ -1,0 +1,215 @@
+"""Contact pairing (issue #12, item 2): node-to-segment, rigid obstacles, the matching identity.
+
+References: the node pairing of a conforming interface (the rows cfcontact has always built),
+analytic gaps of lines and circles, the exactness of linear interpolation (a rigid motion or an
+affine field gives the same relative displacement through any pairing), and timing.
+"""
+
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import cfcontact
+from cfcontact import pairing
+from cfcontact.errors import GeometryError, InputError, PairingWarning
+
+
+def _dense(system):
+    K, N, T, f1, f2 = system.to_scipy()
+    return N.toarray(), T.toarray()
+
+
+# ------------------------------------------------------------ matching identity
+@pytest.mark.parametrize("build", [
+    lambda **k: cfcontact.two_blocks(nx=8, ny=3, **k),
+    lambda **k: cfcontact.two_blocks(nx=8, ny=3, cell="triangle", angle=20.0, **k),
+    lambda **k: cfcontact.arc_on_block(radius=1.0, half_angle=40.0, nx=12, ny=3, **k),
+], ids=["quad", "inclined", "arc"])
+def test_matching_interface_gives_exactly_the_node_pairing(build):
+    """Node to segment on a conforming interface = node to node: the same N, T (bit for bit), no
+    gap, the same contact nodes -- whichever side is the slave."""
+    ref = build()
+    Nr, Tr = _dense(ref)
+    assert ref.info["contact"]["pairing"] == "node" and not ref.has_gap
+    for slave in ("contact1", "contact2", 20):
+        seg = build(pairing="segment", slave=slave)
+        N, T = _dense(seg)
+        assert np.array_equal(N, Nr) and np.array_equal(T, Tr), slave
+        assert not seg.has_gap and seg.info["contact"]["excluded"] == 0
+        assert np.array_equal(seg.geometry.contact_nodes, ref.geometry.contact_nodes)
+        assert np.array_equal(seg.geometry.normals, ref.geometry.normals)
+
+
+# ------------------------------------------------------------ non-matching
+@pytest.mark.parametrize("slave", ["contact1", "contact2"])
+def test_non_matching_blocks_interpolate_affine_fields_exactly(slave):
+    """Two blocks with 6 and 9 cells along the interface (refused by node pairing) pair node to
+    segment: no gap, every slave node paired, and for any affine displacement field of body 2
+    (and another of body 1) N u and T u are the exact relative displacements at the slave nodes."""
+    with pytest.raises(GeometryError, match="pairing='segment'"):
+        cfcontact.two_blocks(nx=6, ny=2, nx2=9, ny2=3)
+    system = cfcontact.two_blocks(nx=6, ny=2, nx2=9, ny2=3, pairing="segment", slave=slave, clamp=("top1", "bottom2"))
+    geo = system.geometry
+    assert system.m == (7 if slave == "contact1" else 10) and np.abs(system.gap).max() <= 1e-15
+    assert geo.tributary.sum() == pytest.approx(3.0)
+    N, T = _dense(system)
+    X = geo.points[geo.dof_node]
+    body = np.zeros(len(geo.points), dtype=int)
+    body[geo.cells.ravel()] = np.repeat(geo.cell_body, geo.cells.shape[1])
+    b = body[geo.dof_node]
+    rng = np.random.default_rng(0)
+    G1, c1, G2, c2 = rng.standard_normal((2, 2)), rng.standard_normal(2), rng.standard_normal((2, 2)), rng.standard_normal(2)
+    U = np.where((b == 1)[:, None], X @ G1.T + c1, X @ G2.T + c2)
+    u = U[np.arange(len(X)), geo.dof_comp]
+    xs = geo.contact_points
+    rel = (xs @ G1.T + c1) - (xs @ G2.T + c2)
+    assert np.allclose(N @ u, np.sum(rel * geo.normals, axis=1), atol=1e-13)
+    assert np.allclose(T @ u, np.sum(rel * geo.tangents, axis=1), atol=1e-13)
+    sol = cfcontact.ssnm(system, 0.5)
+    assert cfcontact.verify(system, sol, 0.5).ok(1e-9)
+
+
+def test_slave_must_be_a_contact_boundary():
+    for bad in ("top1", 12):
+        with pytest.raises(GeometryError, match="slave must be a contact boundary .*top1=12"):
+            cfcontact.two_blocks(nx=3, ny=1, pairing="segment", slave=bad)
+    with pytest.raises(GeometryError, match="slave must be a contact boundary .*'contact3', which is not"):
+        cfcontact.two_blocks(nx=3, ny=1, pairing="segment", slave="contact3")
+    with pytest.raises(InputError, match="pairing must be one of 'node', 'segment', got 'nodes'"):
+        cfcontact.two_blocks(nx=3, ny=1, pairing="nodes")
+    with pytest.raises(GeometryError, match="needs a master"):
+        cfcontact.two_blocks(nx=3, ny=1, foundation=True, pairing="segment")
+
+
+@pytest.mark.parametrize("value", [0, 0.0, -1.0, float("nan"), "far", True])
+def test_search_distance_must_be_positive(value):
+    with pytest.raises(InputError, match="search_distance must be a positive number"):
+        cfcontact.two_blocks(nx=3, ny=1, pairing="segment", search_distance=value)
+
+
+# ------------------------------------------------------------ obstacles
+def _block_on(obstacle, **kw):
+    """A 2 x 0.5 block (body 1 alone, contact1 = its bottom y = 0) pressed down by its top."""
+    return cfcontact.two_blocks(nx=kw.pop("nx", 10), ny=2, length=2.0, height=0.5, foundation=True, obstacle=obstacle,
+                                clamp=(), dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.02)}},
+                                tractions1={}, tractions2={}, **kw)
+
+
+def test_line_obstacle_gap_and_rows():
+    """A rigid line y = -0.01 x - 0.005 below the block: the gap along the block's normal (0, -1)
+    is the vertical distance; the rows involve body 1's DOFs only, as the rigid foundation's."""
+    slope, off = -0.01, -0.005
+    nv = np.array([-slope, 1.0]) / np.hypot(slope, 1.0)
+    system = _block_on({"kind": "line", "point": (0.0, off), "normal": tuple(nv)})
+    x = system.geometry.contact_points[:, 0]
+    assert np.allclose(system.gap, -(slope * x + off), rtol=1e-12, atol=1e-15)
+    assert np.all(system.geometry.contact_nodes[:, 1] == -1)
+    N, T = _dense(system)
+    ref = cfcontact.two_blocks(nx=10, ny=2, length=2.0, height=0.5, foundation=True, clamp=(),
+                               dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.02)}}, tractions1={}, tractions2={})
+    assert np.array_equal(N, _dense(ref)[0]) and np.array_equal(T, _dense(ref)[1])
+    assert system.info["contact"]["obstacle"]["kind"] == "line"
+    assert system.geometry.obstacle == system.info["contact"]["obstacle"]
+
+
+def test_circle_obstacle_gap_excluded_nodes_and_warning():
+    """A rigid disc of radius 0.65 below the block's centre: the gap along (0, -1) is
+    d + R - sqrt(R^2 - (x - x0)^2); nodes beyond the disc (|x - x0| > R) are left out, with one
+    warning naming how many and where."""
+    R, x0, d = 0.65, 1.0, 0.001
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        system = _block_on({"kind": "circle", "center": (x0, -R - d), "radius": R}, nx=20)
+    ours = [w for w in caught if issubclass(w.category, PairingWarning)]
+    assert len(ours) == 1
+    msg = str(ours[0].message)
+    x = system.geometry.contact_points[:, 0]
+    assert np.all(np.abs(x - x0) <= R)
+    assert np.allclose(system.gap, d + R - np.sqrt(R ** 2 - (x - x0) ** 2), rtol=1e-12)
+    info = system.info["contact"]
+    assert info["excluded"] == 21 - 13 and info["pairs"] == 13 and info["excluded_reasons"] == {"miss": 8}
+    assert "8 contact1=10 node(s) left out" in msg and "misses the obstacle" in msg and "x in [0, 2]" in msg
+    assert info["gap_range"] == [pytest.approx(d), pytest.approx(d + R - np.sqrt(R ** 2 - 0.6 ** 2))]
+    # a search distance keeps only the nodes within it
+    with pytest.warns(PairingWarning, match="farther than the search distance"):
+        near = _block_on({"kind": "circle", "center": (x0, -R - d), "radius": R}, nx=20, search_distance=0.05)
+    assert near.m < system.m and near.gap.max() <= 0.05
+
+
+@pytest.mark.parametrize("obstacle,words", [
+    ({"kind": "line", "point": (0, -0.01), "normal": (0, -1)}, "does not face contact1"),
+    ({"kind": "line", "point": (0, 1.0), "normal": (0, 1)}, "does not face contact1"),
+    ({"kind": "circle", "center": (1.0, 3.0), "radius": 0.5}, "does not face contact1"),
+    ({"kind": "circle", "center": (5.0, -1.0), "radius": 0.5}, "does not face contact1"),
+])
+def test_obstacle_that_does_not_face_the_body(obstacle, words):
+    with pytest.raises(GeometryError, match=words):
+        _block_on(obstacle)
+
+
+@pytest.mark.parametrize("obstacle,words", [
+    ({"kind": "plane", "point": (0, 0)}, "'kind' must be one of 'line', 'circle'"),
+    ({"kind": "line", "point": (0, 0)}, "missing: normal"),
+    ({"kind": "line", "point": (0, 0), "normal": (0, 0)}, "must not be zero"),
+    ({"kind": "circle", "center": (0, 0), "radius": -1}, "'radius' must be a positive number"),
+    ({"kind": "circle", "centre": (0, 0), "radius": 1}, "unknown: centre"),
+    ("line", "must be a dict"),
+])
+def test_obstacle_specification_errors(obstacle, words):
+    with pytest.raises(InputError, match=words):
+        pairing.make_obstacle(obstacle)
+    with pytest.raises(InputError, match=words):  # the assembly validates it before building anything
+        cfcontact.assemble_contact_system("/nonexistent.msh", obstacle=obstacle)
+
+
+def test_obstacle_needs_a_single_body():
+    with pytest.raises(GeometryError, match="single body"):
+        cfcontact.two_blocks(nx=3, ny=1, obstacle={"kind": "line", "point": (0, -1), "normal": (0, 1)})
+    with pytest.raises(InputError, match="pairing='segment'"):
+        _block_on({"kind": "line", "point": (0, -0.01), "normal": (0, 1)}, pairing="node")
+
+
+# ------------------------------------------------------------ pure pairing
+def _arc_over_line(ns, nm, half_angle=0.9):
+    """Slave: an arc of radius 1 (centre (0, 1)) with ns facets; master: y = 0, x in [-1.2, 1.2], nm facets."""
+    xm = np.linspace(-1.2, 1.2, nm + 1)
+    phi = np.linspace(-half_angle, half_angle, ns + 1)
+    pts = np.vstack([np.column_stack([xm, np.zeros_like(xm)]), np.column_stack([np.sin(phi), 1 - np.cos(phi)])])
+    mf = np.column_stack([np.arange(nm), np.arange(1, nm + 1)])
+    mc = np.column_stack([0.5 * (xm[:-1] + xm[1:]), np.full(nm, -0.1)])
+    sf = nm + 1 + np.column_stack([np.arange(ns), np.arange(1, ns + 1)])
+    pm = 0.5 * (phi[:-1] + phi[1:])
+    sc = np.column_stack([np.sin(pm), 1.1 - np.cos(pm)])
+    return pts, sf, sc, mf, mc
+
+
+def test_pairing_gap_of_a_circle_over_a_line_and_its_speed():
+    """10^4 slave nodes on an arc of radius 1 over a line of 1.2 10^4 facets: the gap along each
+    radial normal is (1 - cos phi) / cos phi (to rounding), rays beyond the line's end are left
+    out, and the whole pairing takes well under a second."""
+    pts, sf, sc, mf, mc = _arc_over_line(10_000, 12_000)
+    best = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        pr = pairing.node_to_segment(pts, sf, sc, mf, mc, slave_body=1)
+        best = min(best, time.perf_counter() - t0)
+    assert best < 1.0, f"pairing of 10^4 slave nodes took {best:.2f} s"
+    phi = np.arcsin(pts[pr.slave, 0])
+    assert np.abs(pr.gap - (1 - np.cos(phi)) / np.cos(phi)).max() < 1e-12
+    assert pr.m + pr.excluded.size == 10_001
+    assert np.all(np.abs(np.tan(np.arcsin(pts[pr.excluded, 0]))) > 1.2 - 1e-9)  # their rays miss the line
+    assert np.allclose(pr.weights.sum(axis=1), 1.0) and np.all(pr.weights >= 0)
+    assert np.allclose(pr.projections[:, 1], 0.0, atol=1e-14)
+
+
+def test_pairing_slave_body_two_flips_the_normal_and_signs():
+    pts, sf, sc, mf, mc = _arc_over_line(40, 30)
+    p1 = pairing.node_to_segment(pts, sf, sc, mf, mc, slave_body=1)
+    p2 = pairing.node_to_segment(pts, sf, sc, mf, mc, slave_body=2)
+    assert np.array_equal(p1.normals, -p2.normals) and np.array_equal(p1.gap, p2.gap)
+    r1, n1, f1 = p1.entries()
+    r2, n2, f2 = p2.entries()
+    assert np.array_equal(n1, n2) and np.array_equal(f1, -f2)
+    assert np.array_equal(p1.body_nodes()[:, 0], p2.body_nodes()[:, 1])
