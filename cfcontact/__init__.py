@@ -33,6 +33,8 @@ __version__ = "0.1.0"
 _LAZY = {
     "two_blocks": ("cfcontact.models", "two_blocks"),
     "arc_on_block": ("cfcontact.models", "arc_on_block"),
+    "cylinder_on_block": ("cfcontact.models", "cylinder_on_block"),
+    "rounded_punch": ("cfcontact.models", "rounded_punch"),
     "assemble_contact_system": ("cfcontact.assembly", "assemble_contact_system"),
     "trace_path": ("cfcontact.path", "trace_path"),
     "SolutionPath": ("cfcontact.path", "SolutionPath"),

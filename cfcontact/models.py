@@ -15,7 +15,8 @@ from types import MappingProxyType
 
 from cfcontact.errors import InputError
 
-__all__ = ["two_blocks", "arc_on_block", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTIONS2"]
+__all__ = ["two_blocks", "arc_on_block", "cylinder_on_block", "rounded_punch", "DEFAULT_TRACTIONS1",
+           "DEFAULT_TRACTIONS2"]
 
 #: Default surface tractions (Pa = N/m^2, force per unit length in 2-D) of the load f1:
 #: a downward pressure of 1e8 on the top of body 1 with a small shear (ratio 0.2).
@@ -217,3 +218,163 @@ def arc_on_block(
             geo.build(**params)
             return assemble_contact_system(model, info=info, **kwargs)
     return assemble_contact_system(None, info=info, **kwargs)
+
+
+def _pair(value, what):
+    """A number (the same along the path) or a pair (value at alpha = 0, value at alpha = 1)."""
+    try:
+        if isinstance(value, (bool, str)):
+            raise TypeError
+        vals = [float(v) for v in (value if hasattr(value, "__len__") else (value, value))]
+    except (TypeError, ValueError):
+        vals = []
+    if len(vals) != 2 or not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{what} must be a number or a pair (value at alpha = 0, value at alpha = 1), got {value!r}")
+    return tuple(vals)
+
+
+def _punch_loading(dirichlet, indentation, shift, half):
+    """The default Dirichlet conditions of a body pressed by its top edge: u = (shift(alpha),
+    -indentation(alpha)) on top1, and u_x = 0 on the symmetry edges of a half model."""
+    if dirichlet is not None:
+        return dirichlet
+    out = {"top1": {"x": _pair(shift, "shift"), "y": tuple(-v for v in _pair(indentation, "indentation"))}}
+    if half:
+        if any(_pair(shift, "shift")):
+            raise InputError("a half model cannot take a tangential shift (it breaks the symmetry)")
+        out.update({"sym1": {"x": 0.0}, "sym2": {"x": 0.0}})
+    return out
+
+
+def _build_and_assemble(geo_name, params, info, kwargs, comm):
+    from mpi4py import MPI
+
+    from cfcontact import compat  # imports dolfinx
+    from cfcontact.assembly import assemble_contact_system
+
+    comm = MPI.COMM_WORLD if comm is None else comm
+    geo = _meshes_module(geo_name)
+    if comm.rank == 0:
+        with compat.gmsh_model(f"cfcontact-{geo_name}") as model:
+            geo.build(**params)
+            return assemble_contact_system(model, info=info, comm=comm, **kwargs)
+    return assemble_contact_system(None, info=info, comm=comm, **kwargs)
+
+
+def cylinder_on_block(
+    *,
+    radius=1.0,
+    width=4.0,
+    depth=2.0,
+    zone=0.3,
+    size=0.02,
+    size_far=0.25,
+    gap0=0.0,
+    cell="triangle",
+    half=False,
+    E=2.1e11,
+    nu=0.3,
+    plane="strain",
+    friction=0.0,
+    indentation=(0.0, 0.005),
+    shift=0.0,
+    clamp=("bottom2",),
+    dirichlet=None,
+    tractions1=None,
+    tractions2=None,
+    body_force1=None,
+    body_force2=None,
+    rho=None,
+    comm=None,
+    pairing="segment",
+    slave="contact2",
+    search_distance=None,
+    match_tol=1e-8,
+):
+    """A (half-)cylinder pressed on a block (Hertz contact, plane strain by default), with the
+    initial gap of the curved surface: ``meshes/cylinder_on_block.py``.
+
+    Body 1 is the lower half of a cylinder of radius ``radius`` (lowest point ``gap0`` above the
+    block), body 2 the block ``[-width/2, width/2] x [-depth, 0]``, clamped at its bottom.  The
+    bodies are meshed independently (element size ``size`` along the contact boundaries, growing
+    to ``size_far``; ``cell`` triangles or quadrilaterals) and paired node to segment with the
+    block's top as the slave (``slave="contact2"``: vertical normals, gap ``gap0 + R - sqrt(R^2 -
+    x^2)``).  The mesh is mirror-symmetric about x = 0; ``half=True`` models the right half with
+    the symmetry conditions u_x = 0 on ``sym1`` and ``sym2``.
+
+    Loading (default): the cylinder's flat top ``top1`` is moved by ``(shift, -indentation)``,
+    each a number or a pair (value at alpha = 0, value at alpha = 1): the indentation depth is the
+    path parameter (default from 0 to 0.005).  ``dirichlet`` replaces these conditions (see
+    :func:`cfcontact.assembly.assemble_contact_system`); tractions and body forces may be added.
+    The contact force P is then the sum of lam_n (``ContactGeometry.tributary`` turns lam_n into a
+    pressure).  Tags: ``contact1, top1, right1, left1, sym1, contact2, top2, bottom2, right2,
+    left2, sym2``.
+    """
+    geo = _meshes_module("cylinder_on_block")
+    params = geo.check_parameters(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far,
+                                  gap0=gap0, cell=cell, half=half)
+    kwargs = dict(
+        E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
+        tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
+        friction=friction, rho=rho, match_tol=match_tol, pairing=pairing, slave=slave,
+        search_distance=search_distance,
+    )
+    info = {"model": "cylinder_on_block", "model_parameters": dict(params)}
+    return _build_and_assemble("cylinder_on_block", params, info, kwargs, comm)
+
+
+def rounded_punch(
+    *,
+    half_width=0.5,
+    edge_radius=0.1,
+    height=0.5,
+    width=4.0,
+    depth=2.0,
+    zone=None,
+    size=0.01,
+    size_far=0.25,
+    gap0=0.0,
+    cell="triangle",
+    half=False,
+    E=2.1e11,
+    nu=0.3,
+    plane="strain",
+    friction=0.0,
+    indentation=(0.0, 0.002),
+    shift=0.0,
+    clamp=("bottom2",),
+    dirichlet=None,
+    tractions1=None,
+    tractions2=None,
+    body_force1=None,
+    body_force2=None,
+    rho=None,
+    comm=None,
+    pairing="segment",
+    slave="contact2",
+    search_distance=None,
+    match_tol=1e-8,
+):
+    """A flat punch with rounded edges pressed on a block: ``meshes/rounded_punch.py``.
+
+    Body 1 is the punch ``[-half_width, half_width] x [gap0, gap0 + height]`` with its bottom
+    corners rounded (radius ``edge_radius``), body 2 the block ``[-width/2, width/2] x [-depth,
+    0]`` clamped at its bottom; meshed independently (``size`` along the contact boundaries) and
+    paired node to segment with the block's top (``|x| <= zone``, default ``half_width -
+    edge_radius / 4``) as the slave.  The gap is ``gap0`` under the flat part and grows along the
+    rounded edges.  Mirror-symmetric mesh; ``half=True`` models the right half (u_x = 0 on
+    ``sym1``, ``sym2``).  Loading as :func:`cylinder_on_block`: the punch's top is moved by
+    ``(shift, -indentation)`` (default indentation from 0 to 0.002), or ``dirichlet``.
+    """
+    geo = _meshes_module("rounded_punch")
+    params = geo.check_parameters(half_width=half_width, edge_radius=edge_radius, height=height, width=width,
+                                  depth=depth, zone=zone, size=size, size_far=size_far, gap0=gap0, cell=cell,
+                                  half=half)
+    kwargs = dict(
+        E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
+        tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
+        friction=friction, rho=rho, match_tol=match_tol, pairing=pairing, slave=slave,
+        search_distance=search_distance,
+    )
+    info = {"model": "rounded_punch", "model_parameters": dict(params)}
+    return _build_and_assemble("rounded_punch", params, info, kwargs, comm)

@@ -6,6 +6,7 @@ Importable as ``cfcontact.meshes.common`` and, when a script runs stand-alone
 
 from __future__ import annotations
 
+import contextlib
 import math
 import operator
 
@@ -14,7 +15,9 @@ try:  # typed errors of the package when available; both are ValueErrors
 except Exception:  # pragma: no cover - running as a stand-alone script
     InputError = GeometryError = ValueError
 
-#: physical group numbers of every model (DESIGN.md; README "Tag convention")
+#: physical group numbers of every model (DESIGN.md; README "Tag convention"); ``sym1`` /
+#: ``sym2`` are the symmetry edges (x = 0) of half models, ``top2`` the top of a block outside
+#: its contact boundary
 TAGS = {
     "body1": (2, 1),
     "body2": (2, 2),
@@ -22,10 +25,13 @@ TAGS = {
     "top1": (1, 12),
     "right1": (1, 13),
     "left1": (1, 14),
+    "sym1": (1, 15),
     "contact2": (1, 20),
+    "top2": (1, 21),
     "bottom2": (1, 22),
     "right2": (1, 23),
     "left2": (1, 24),
+    "sym2": (1, 25),
 }
 
 CELLS = ("quadrilateral", "triangle")
@@ -72,6 +78,14 @@ def check_angle(name, value):
     return value
 
 
+def check_fraction(name, value, upper=1.0):
+    """A number in (0, upper), else InputError naming ``name``."""
+    value = check_length(name, value)
+    if not value < upper:
+        raise InputError(f"{name} must lie in (0, {upper:g}), got {value!r}")
+    return value
+
+
 def check_cell(cell):
     """"quadrilateral" or "triangle" (a few aliases accepted), else InputError listing CELLS."""
     key = str(cell).lower()
@@ -107,3 +121,207 @@ def add_physical_groups(gmsh, groups):
         gmsh.model.setPhysicalName(dim, number, name)
         created[name] = (dim, number)
     return created
+
+
+class MirrorSketch:
+    """Build a geometry symmetric about x = 0 from its right half (x >= 0), in the gmsh geo kernel.
+
+    A script describes the right half once, as a function of a sketch ``sk`` and a side
+    ``s = +1`` (``sk.point(s * x, y, body)``, ``sk.line``, ``sk.arc``, ``sk.surface``).  Called with
+    s = +1 and, for the full model, again with s = -1, it gives the two halves; points and lines on
+    x = 0 are shared (created once).  :meth:`make_symmetric` then makes the left half's mesh the
+    mirror image of the right half's (gmsh periodic meshing with the reflection x -> -x), so the
+    full mesh is exactly symmetric and its right half is exactly the half model's mesh (call
+    :meth:`mirror_nodes` after meshing to remove gmsh's rounding).
+    """
+
+    def __init__(self, geo):
+        self.geo = geo
+        self._points = {}
+        self._lines = {}
+        self._centres = []
+        self.created = {1: [], -1: []}  # per side: (dim, tag) of the curves and surfaces created, in order
+
+    def point(self, x, y, body=1):
+        """The point (x, y) of ``body`` (bodies never share points; a half's points on x = 0 are
+        shared with the other half)."""
+        key = (int(body), 0.0 if x == 0 else float(x), float(y))
+        if key not in self._points:
+            self._points[key] = self.geo.addPoint(key[1], key[2], 0.0)
+        return self._points[key]
+
+    def centre(self, x, y):
+        """A construction point (the centre of arcs), removed by :meth:`remove_centres` after
+        ``synchronize`` so that it leaves no orphan mesh node."""
+        tag = self.geo.addPoint(float(x), float(y), 0.0)
+        self._centres.append(tag)
+        return tag
+
+    def remove_centres(self, gmsh):
+        if self._centres:
+            gmsh.model.removeEntities([(0, t) for t in self._centres])
+
+    def _side(self, *coords):
+        xs = [c for c in coords if c != 0]
+        return 1 if not xs or xs[0] > 0 else -1
+
+    def _coords(self, p):
+        for key, tag in self._points.items():
+            if tag == p:
+                return key[1:]
+        raise KeyError(f"point {p} was not made by MirrorSketch.point")
+
+    def line(self, p, q):
+        """A straight line p -> q (shared when it lies on x = 0)."""
+        (xp, _), (xq, _) = self._coords(p), self._coords(q)
+        if xp == 0 and xq == 0:
+            key = tuple(sorted((p, q)))
+            if key not in self._lines:
+                self._lines[key] = (self.geo.addLine(p, q), p)
+            tag, start = self._lines[key]
+            return tag if start == p else -tag
+        tag = self.geo.addLine(p, q)
+        self.created[self._side(xp, xq)].append((1, tag))
+        return tag
+
+    def arc(self, p, centre, q):
+        """A circular arc p -> q about ``centre`` (less than 180 degrees)."""
+        (xp, _), (xq, _) = self._coords(p), self._coords(q)
+        tag = self.geo.addCircleArc(p, centre, q)
+        self.created[self._side(xp, xq)].append((1, tag))
+        return tag
+
+    def surface(self, curves, side):
+        """A plane surface bounded by the closed loop of (signed) curves."""
+        tag = self.geo.addPlaneSurface([self.geo.addCurveLoop(list(curves))])
+        self.created[side].append((2, tag))
+        return tag
+
+    def make_symmetric(self, gmsh):
+        """After ``synchronize``: mesh the left half as the mirror image of the right half."""
+        right, left = self.created[1], self.created[-1]
+        if not left:
+            return
+        if [d for d, _ in right] != [d for d, _ in left]:
+            raise RuntimeError("the two halves were not built alike")
+        reflect = [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+        for (dim, r), (_, l) in zip(right, left):
+            gmsh.model.mesh.setPeriodic(dim, [l], [r], reflect)
+
+    def mirror_nodes(self, gmsh):
+        """After meshing: place every node of the left half exactly at the mirror image of its
+        right-half node (gmsh's periodic copy of curved entities is only accurate to ~1e-8)."""
+        mesh = gmsh.model.mesh
+        for dim, l in self.created[-1]:
+            _, slaves, masters, _ = mesh.getPeriodicNodes(dim, l)
+            for s_tag, m_tag in zip(slaves, masters):
+                xyz = mesh.getNode(m_tag)[0]
+                mesh.setNode(s_tag, [-xyz[0], xyz[1], xyz[2]], [])
+
+
+def refine_near(gmsh, curves, size, size_far, dist_min, dist_max):
+    """Mesh size ``size`` within ``dist_min`` of the curves, growing linearly to ``size_far`` at
+    ``dist_max`` (a gmsh Distance + Threshold background field; mesh inside
+    :func:`field_sizes_only` so that point sizes do not interfere)."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "CurvesList", list(curves))
+    for name in ("Sampling", "NumPointsPerCurve"):  # the option's name since gmsh 4.11 / before
+        try:
+            field.setNumber(dist, name, 400)
+            break
+        except Exception:  # gmsh raises a plain Exception for an unknown option
+            continue
+    thr = field.add("Threshold")
+    field.setNumber(thr, "InField", dist)
+    field.setNumber(thr, "SizeMin", size)
+    field.setNumber(thr, "SizeMax", size_far)
+    field.setNumber(thr, "DistMin", dist_min)
+    field.setNumber(thr, "DistMax", dist_max)
+    field.setAsBackgroundMesh(thr)
+
+
+@contextlib.contextmanager
+def field_sizes_only(gmsh):
+    """Mesh sizes from the background field alone inside the block (gmsh's global options restored)."""
+    names = ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature")
+    old = [gmsh.option.getNumber(n) for n in names]
+    try:
+        for n in names:
+            gmsh.option.setNumber(n, 0)
+        yield
+    finally:
+        for n, v in zip(names, old):
+            gmsh.option.setNumber(n, v)
+
+
+
+def block_half(sk, s, zone, half_width, depth, parts):
+    """One half (side ``s``) of body 2 as the block [-half_width, half_width] x [-depth, 0] under a
+    body pressed on it: ``contact2`` (its top for |x| <= zone), ``top2`` (the rest of its top),
+    ``right2`` / ``left2``, ``bottom2``; names -> entities added to ``parts``.  Returns
+    (contact2 curve, symmetry-axis curve)."""
+    pt = sk.point
+    O, Z, E = pt(0.0, 0.0, 2), pt(s * zone, 0.0, 2), pt(s * half_width, 0.0, 2)
+    F, G = pt(s * half_width, -depth, 2), pt(0.0, -depth, 2)
+    c2, t2, r2, b2, ax2 = sk.line(O, Z), sk.line(Z, E), sk.line(E, F), sk.line(F, G), sk.line(G, O)
+    S2 = sk.surface([c2, t2, r2, b2, ax2], s)
+    for name, ent in (("body2", S2), ("contact2", c2), ("top2", t2), ("right2" if s > 0 else "left2", r2),
+                      ("bottom2", b2)):
+        parts.setdefault(name, []).append(abs(ent))
+    return c2, ax2
+
+
+def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist_min, dist_max, mesh=True):
+    """The common end of a mirror-symmetric model: recombination (quadrilaterals), synchronize,
+    symmetric meshing, refinement near ``contact_curves``, physical groups from ``parts``
+    ({name: [entities]}, names of TAGS), meshing.  Returns {name: (dim, number)}."""
+    if cell == "quadrilateral":
+        for surf in parts["body1"] + parts.get("body2", []):
+            gmsh.model.geo.mesh.setRecombine(2, surf)
+    gmsh.model.geo.synchronize()
+    sk.remove_centres(gmsh)
+    sk.make_symmetric(gmsh)
+    refine_near(gmsh, contact_curves, size, size_far, dist_min, dist_max)
+    groups = {name: (TAGS[name][0], ents) for name, ents in parts.items()}
+    created = add_physical_groups(gmsh, groups)
+    if mesh:
+        with field_sizes_only(gmsh):
+            gmsh.model.mesh.generate(2)
+        sk.mirror_nodes(gmsh)
+        gmsh.model.mesh.renumberNodes()
+    return created
+
+
+def script_main(argv, name, description, defaults, check_parameters, build, cells=CELLS):
+    """The command line of a geometry script: ``python3 meshes/<name>.py OUT.msh --key value ...``
+    (one option per entry of ``defaults``; booleans are flags), writes a version 4.1 .msh file."""
+    import argparse
+
+    import gmsh
+
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("output", help="output file (.msh)")
+    for key, value in defaults.items():
+        opt = "--" + key.replace("_", "-")
+        if isinstance(value, bool):
+            ap.add_argument(opt, action="store_true", dest=key)
+        elif key == "cell":
+            ap.add_argument(opt, choices=cells, default=value, dest=key)
+        else:
+            ap.add_argument(opt, type=type(value) if value is not None else float, default=value, dest=key)
+    args = ap.parse_args(argv)
+    try:
+        params = check_parameters(**{k: getattr(args, k) for k in defaults})
+    except ValueError as exc:
+        ap.error(str(exc))
+    gmsh.initialize([], False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(name)
+        build(**params)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(args.output)
+    finally:
+        gmsh.finalize()
+    return 0

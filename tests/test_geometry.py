@@ -1,0 +1,159 @@
+"""Geometry variants with real contact geometry (issue #12, item 3): a cylinder on a block and a
+rounded punch (gmsh, meshed independently, refined toward the contact zone), paired node to
+segment with their initial gaps; a user's non-matching .msh; mirror-symmetric meshes and half
+models."""
+
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import cfcontact
+from cfcontact.assembly import assemble_contact_system
+from cfcontact.errors import GeometryError, InputError
+from cfcontact.models import _meshes_module
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CYL = dict(radius=1.0, width=3.0, depth=1.5, zone=0.3, size=0.04, size_far=0.4, E=1.0, nu=0.3)
+PUNCH = dict(half_width=0.5, edge_radius=0.1, width=3.0, depth=1.5, size=0.025, size_far=0.4, E=1.0, nu=0.3)
+
+
+@pytest.fixture(scope="module")
+def cylinder():
+    return cfcontact.cylinder_on_block(**CYL, indentation=(0.0, 0.03))
+
+
+def _mirror_index(points):
+    """Index of the mirror image (-x, y) of every point (KeyError if some has none)."""
+    key = lambda p: tuple(np.round(p * 1e9).astype(np.int64))  # noqa: E731
+    index = {}
+    for i, p in enumerate(points):
+        index.setdefault(key(p), []).append(i)
+    return index, key
+
+
+def test_cylinder_gap_is_the_circle_seen_from_the_block(cylinder):
+    """Slave = the block's top (vertical normals): g = R - sqrt(R^2 - x^2) up to the sagitta of the
+    cylinder's chords (h^2 / (8 R)); about x^2 / (2 R) near the axis.  Every block node is paired."""
+    s = cylinder
+    x = s.geometry.contact_points[:, 0]
+    exact = 1.0 - np.sqrt(1.0 - x ** 2)
+    h = 1.25 * CYL["zone"] * 1.0 / np.ceil(np.arcsin(1.25 * CYL["zone"]) / CYL["size"])  # chord length bound
+    assert np.all(s.gap >= exact - 1e-14) and np.all(s.gap - exact <= h ** 2 / 8 + 1e-14)
+    small = np.abs(x) < 0.1
+    assert np.allclose(s.gap[small], x[small] ** 2 / 2, atol=h ** 2 / 8 + 1e-5)
+    assert s.info["contact"]["excluded"] == 0 and s.info["contact"]["slave"] == "contact2=20"
+    assert np.allclose(np.abs(s.geometry.normals), [0.0, 1.0])
+    assert s.geometry.tributary.sum() == pytest.approx(2 * CYL["zone"])
+    assert np.all(np.diff(x) > 0)  # ordered along the interface
+
+
+def test_cylinder_mesh_is_mirror_symmetric(cylinder):
+    geo = cylinder.geometry
+    index, key = _mirror_index(geo.points)
+    mirrored = {key(p * [-1, 1]) for p in geo.points}
+    assert mirrored == set(index)
+    cells = {tuple(sorted(key(geo.points[i]) for i in c)) for c in geo.cells}
+    assert {tuple(sorted(key(geo.points[i] * [-1, 1]) for i in c)) for c in geo.cells} == cells
+    # gaps and tributary lengths mirror too
+    x = geo.contact_points[:, 0]
+    assert np.array_equal(cylinder.gap, cylinder.gap[::-1]) and np.allclose(x, -x[::-1], atol=0)
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.4])
+def test_cylinder_half_model_gives_the_full_solution(cylinder, friction):
+    """The half model (sym1, sym2: u_x = 0) has exactly the right half of the full mesh and gives
+    the full model's displacements there; contact forces too (the centre node carries half)."""
+    full = cylinder.with_friction(friction)
+    half = cfcontact.cylinder_on_block(**CYL, indentation=(0.0, 0.03), half=True, friction=friction)
+    assert half.info["dirichlet"]["sym1=15"] == {"x": [0.0, 0.0]} and half.no_tangent.tolist() == [True] + [False] * (
+        half.m - 1)
+    sols = []
+    for s in (full, half):
+        start = cfcontact.ssnm(s.with_rho(0.1 * s.rho), 1.0)  # (the default rho cycles with friction here)
+        sol = cfcontact.ssnm(s, 1.0, y0=start)
+        assert cfcontact.verify(s, sol, 1.0).ok(1e-9)
+        sols.append(sol)
+    sf, sh = sols
+    assert np.count_nonzero(sf.lam_n) >= 7
+    Uf = full.geometry.displacement_field(sf.u, 1.0)
+    Uh = half.geometry.displacement_field(sh.u, 1.0)
+    key = lambda p: tuple(np.round(p * 1e9).astype(np.int64))  # noqa: E731
+    body = np.zeros(len(full.geometry.points), dtype=int)
+    body[full.geometry.cells.ravel()] = np.repeat(full.geometry.cell_body, full.geometry.cells.shape[1])
+    bodyh = np.zeros(len(half.geometry.points), dtype=int)
+    bodyh[half.geometry.cells.ravel()] = np.repeat(half.geometry.cell_body, half.geometry.cells.shape[1])
+    index = {(key(p), b): i for i, (p, b) in enumerate(zip(full.geometry.points, body))}
+    match = np.array([index[(key(p), b)] for p, b in zip(half.geometry.points, bodyh)])
+    assert np.abs(Uh - Uf[match]).max() <= 1e-8 * np.abs(Uf).max()
+    xf, xh = full.geometry.contact_points[:, 0], half.geometry.contact_points[:, 0]
+    jf = np.searchsorted(xf, xh)
+    assert np.allclose(xf[jf], xh, atol=1e-12)
+    w = np.where(xh == 0.0, 0.5, 1.0)
+    assert np.abs(sh.lam_n - w * sf.lam_n[jf]).max() <= 1e-7 * sf.lam_n.max()
+
+
+def test_rounded_punch_gap_and_pressure_peaks_under_the_edges():
+    s = cfcontact.rounded_punch(**PUNCH, indentation=(0.0, 0.002))
+    x = s.geometry.contact_points[:, 0]
+    w, r = PUNCH["half_width"], PUNCH["edge_radius"]
+    flat = np.abs(x) <= w - r
+    assert np.all(s.gap[flat] == 0.0)
+    d = np.abs(x[~flat]) - (w - r)
+    exact = r - np.sqrt(r ** 2 - d ** 2)
+    chord = 0.5 * np.pi * r / np.ceil(0.5 * np.pi * r / PUNCH["size"])
+    sag = chord ** 2 / (8 * r) / np.sqrt(1 - (d / r) ** 2)  # the chords' sagitta, seen vertically
+    assert np.all(s.gap[~flat] >= exact - 1e-14) and np.all(s.gap[~flat] - exact <= sag)
+    sol = cfcontact.ssnm(s, 1.0)
+    p = sol.lam_n / s.geometry.tributary
+    assert set(np.array(sol.states())[flat]) <= {"stick", "slip+", "slip-"}  # the flat part is in contact
+    assert np.abs(x[np.argmax(p)]) > w - r - 2 * PUNCH["size"]  # peak near where the rounding starts
+    assert p[np.argmin(np.abs(x))] < 0.5 * p.max()
+
+
+@pytest.mark.parametrize("script,kwargs", [("cylinder_on_block", CYL), ("rounded_punch", PUNCH)])
+def test_script_writes_a_non_matching_msh_that_assembles_alike(tmp_path, script, kwargs):
+    """A user's .msh whose contact boundaries do not match: refused by node pairing (with the hint),
+    accepted by node-to-segment pairing, and equal to the model builder's system."""
+    geo_keys = {k: v for k, v in kwargs.items() if k not in ("E", "nu")}
+    msh = str(tmp_path / f"{script}.msh")
+    args = [a for k, v in geo_keys.items() for a in ("--" + k.replace("_", "-"), str(v))]
+    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", f"{script}.py"), msh, *args], check=True,
+                   capture_output=True)
+    load = dict(clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.03)}}, E=1.0, nu=0.3)
+    with pytest.raises(GeometryError, match="non-matching contact interface.*pairing='segment'"):
+        assemble_contact_system(msh, **load)
+    from_file = assemble_contact_system(msh, pairing="segment", slave="contact2", **load)
+    builder = getattr(cfcontact, script)(**kwargs, indentation=(0.0, 0.03))
+    a, b = from_file.to_scipy(), builder.to_scipy()
+    for x, y in zip(a, b):
+        x, y = (x.toarray(), y.toarray()) if hasattr(x, "toarray") else (x, y)
+        assert x.shape == y.shape and np.abs(x - y).max(initial=0) <= 1e-12 * max(np.abs(y).max(initial=0), 1e-300)
+    assert np.allclose(from_file.gap, builder.gap, rtol=0, atol=1e-14)  # (coordinates through text)
+
+
+@pytest.mark.parametrize("script,kwargs,error,words", [
+    ("cylinder_on_block", dict(zone=0.9), GeometryError, "zone must be below"),
+    ("cylinder_on_block", dict(size=0.2), GeometryError, "size must be at most zone / 2"),
+    ("cylinder_on_block", dict(radius=0), InputError, "radius must be a positive number"),
+    ("cylinder_on_block", dict(gap0=-0.1), InputError, "gap0 must be a positive number"),
+    ("rounded_punch", dict(edge_radius=0.6), GeometryError, "edge_radius must be below half_width"),
+    ("rounded_punch", dict(zone=0.6), GeometryError, "zone must be below half_width"),
+    ("rounded_punch", dict(half_width=3.0), GeometryError, "narrower than the block"),
+    ("rounded_punch", dict(cell="hexagon"), InputError, "cell must be one of"),
+])
+def test_geometry_parameters_validated(script, kwargs, error, words):
+    with pytest.raises(error, match=words):
+        _meshes_module(script).check_parameters(**kwargs)
+    with pytest.raises(error, match=words):  # the builder validates before meshing
+        getattr(cfcontact, script)(**kwargs)
+
+
+def test_half_model_refuses_a_tangential_shift():
+    with pytest.raises(InputError, match="half model cannot take a tangential shift"):
+        cfcontact.cylinder_on_block(**CYL, half=True, shift=(0.0, 1e-3))
+    with pytest.raises(InputError, match="indentation must be a number or a pair"):
+        cfcontact.cylinder_on_block(**CYL, indentation="deep")
