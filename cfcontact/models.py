@@ -269,6 +269,7 @@ def cylinder_on_block(
     zone=0.3,
     size=0.02,
     size_far=0.25,
+    growth=0.2,
     gap0=0.0,
     cell="triangle",
     half=False,
@@ -299,7 +300,7 @@ def cylinder_on_block(
     bodies are meshed independently (element size ``size`` along the contact boundaries, growing
     to ``size_far``; ``cell`` triangles or quadrilaterals) and paired node to segment with the
     block's top as the slave (``slave="contact2"``: vertical normals, gap ``gap0 + R - sqrt(R^2 -
-    x^2)``).  The mesh is mirror-symmetric about x = 0; ``half=True`` models the right half with
+    x^2)``).  The element size grows by ``growth`` per unit distance from the contact zone.  The mesh is mirror-symmetric about x = 0; ``half=True`` models the right half with
     the symmetry conditions u_x = 0 on ``sym1`` and ``sym2``.
 
     Loading (default): the cylinder's flat top ``top1`` is moved by ``(shift, -indentation)``,
@@ -312,7 +313,7 @@ def cylinder_on_block(
     """
     geo = _meshes_module("cylinder_on_block")
     params = geo.check_parameters(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far,
-                                  gap0=gap0, cell=cell, half=half)
+                                  growth=growth, gap0=gap0, cell=cell, half=half)
     kwargs = dict(
         E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
         tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
@@ -333,6 +334,7 @@ def rounded_punch(
     zone=None,
     size=0.01,
     size_far=0.25,
+    growth=0.2,
     gap0=0.0,
     cell="triangle",
     half=False,
@@ -368,8 +370,8 @@ def rounded_punch(
     """
     geo = _meshes_module("rounded_punch")
     params = geo.check_parameters(half_width=half_width, edge_radius=edge_radius, height=height, width=width,
-                                  depth=depth, zone=zone, size=size, size_far=size_far, gap0=gap0, cell=cell,
-                                  half=half)
+                                  depth=depth, zone=zone, size=size, size_far=size_far, growth=growth, gap0=gap0,
+                                  cell=cell, half=half)
     kwargs = dict(
         E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
         tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,

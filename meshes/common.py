@@ -219,10 +219,11 @@ class MirrorSketch:
                 mesh.setNode(s_tag, [-xyz[0], xyz[1], xyz[2]], [])
 
 
-def refine_near(gmsh, curves, size, size_far, dist_min, dist_max):
-    """Mesh size ``size`` within ``dist_min`` of the curves, growing linearly to ``size_far`` at
-    ``dist_max`` (a gmsh Distance + Threshold background field; mesh inside
-    :func:`field_sizes_only` so that point sizes do not interfere)."""
+def refine_near(gmsh, curves, size, size_far, dist_min, growth):
+    """Mesh size ``size`` within ``dist_min`` of the curves, growing linearly with the distance
+    (by ``growth`` per unit length) up to ``size_far`` (a gmsh Distance + Threshold background
+    field; mesh inside :func:`field_sizes_only` so that point sizes do not interfere).  A constant
+    growth rate keeps the elements well shaped and costs only a logarithmic number of them."""
     field = gmsh.model.mesh.field
     dist = field.add("Distance")
     field.setNumbers(dist, "CurvesList", list(curves))
@@ -237,7 +238,7 @@ def refine_near(gmsh, curves, size, size_far, dist_min, dist_max):
     field.setNumber(thr, "SizeMin", size)
     field.setNumber(thr, "SizeMax", size_far)
     field.setNumber(thr, "DistMin", dist_min)
-    field.setNumber(thr, "DistMax", dist_max)
+    field.setNumber(thr, "DistMax", dist_min + max(size_far - size, 0.0) / growth)
     field.setAsBackgroundMesh(thr)
 
 
@@ -272,7 +273,7 @@ def block_half(sk, s, zone, half_width, depth, parts):
     return c2, ax2
 
 
-def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist_min, dist_max, mesh=True):
+def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist_min, growth, mesh=True):
     """The common end of a mirror-symmetric model: recombination (quadrilaterals), synchronize,
     symmetric meshing, refinement near ``contact_curves``, physical groups from ``parts``
     ({name: [entities]}, names of TAGS), meshing.  Returns {name: (dim, number)}."""
@@ -282,7 +283,7 @@ def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist
     gmsh.model.geo.synchronize()
     sk.remove_centres(gmsh)
     sk.make_symmetric(gmsh)
-    refine_near(gmsh, contact_curves, size, size_far, dist_min, dist_max)
+    refine_near(gmsh, contact_curves, size, size_far, dist_min, growth)
     groups = {name: (TAGS[name][0], ents) for name, ents in parts.items()}
     created = add_physical_groups(gmsh, groups)
     if mesh:

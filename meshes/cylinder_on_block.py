@@ -19,8 +19,8 @@ along the block's normal is ``gap0 + R - sqrt(R^2 - x^2) = gap0 + x^2 / (2 R) + 
 
 ``contact2`` is the block's top for ``|x| <= zone``; ``contact1`` the cylinder's arc for
 ``|x| <= 1.25 zone`` (so that every block node of ``contact2`` faces it).  Both are meshed
-uniformly with elements of size ``size``; the mesh grows to ``size_far`` away from them (a
-distance field).  Triangles, or quadrilaterals (recombined).
+uniformly with elements of size ``size``; away from them the elements grow by ``growth`` per unit
+distance up to ``size_far`` (a distance field).  Triangles, or quadrilaterals (recombined).
 
 The mesh is mirror-symmetric about ``x = 0`` (the left half is meshed as the mirror image of
 the right half), so nodes at ``x`` and ``-x`` change state together on symmetric loads.  With
@@ -67,14 +67,14 @@ except ImportError:  # pragma: no cover - stand-alone script or uninstalled sour
 TAGS, CELLS = common.TAGS, common.CELLS
 
 #: default parameters of :func:`build`
-DEFAULTS = dict(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, gap0=0.0,
+DEFAULTS = dict(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, growth=0.2, gap0=0.0,
                 cell="triangle", half=False)
 
 #: contact1 spans |x| <= ARC_FACTOR * zone on the cylinder
 ARC_FACTOR = 1.25
 
 
-def check_parameters(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, gap0=0.0,
+def check_parameters(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, growth=0.2, gap0=0.0,
                      cell="triangle", half=False):
     """Validated, normalised parameters of :func:`build` as a dict (InputError / GeometryError)."""
     radius = common.check_length("radius", radius)
@@ -83,6 +83,7 @@ def check_parameters(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size
     zone = common.check_length("zone", zone)
     size = common.check_length("size", size)
     size_far = common.check_length("size_far", size_far)
+    growth = common.check_fraction("growth", growth)
     if gap0 != 0:
         gap0 = common.check_length("gap0", gap0)
     gap0 = float(gap0)
@@ -96,12 +97,12 @@ def check_parameters(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size
         raise common.GeometryError(f"size must be at most zone / 2 = {zone / 2:g} (a few elements along the contact "
                                    f"zone), got {size!r}")
     size_far = max(size_far, size)
-    return dict(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far, gap0=gap0,
-                cell=cell, half=bool(half))
+    return dict(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far, growth=growth,
+                gap0=gap0, cell=cell, half=bool(half))
 
 
-def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, gap0=0.0, cell="triangle",
-          half=False, *, mesh=True):
+def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, growth=0.2, gap0=0.0,
+          cell="triangle", half=False, *, mesh=True):
     """Build the cylinder-on-block geometry and mesh into the *current* gmsh model.
 
     Parameters
@@ -110,7 +111,8 @@ def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, 
     width, depth : the block [-width/2, width/2] x [-depth, 0] (default 4 x 2)
     zone : half-width of the block's contact boundary contact2 (default 0.3; the cylinder's
         contact1 spans |x| <= 1.25 zone)
-    size : element size along the contact boundaries (default 0.02); ``size_far`` away from them
+    size : element size along the contact boundaries (default 0.02); it grows by ``growth`` per unit
+        distance (default 0.2) up to ``size_far`` (default 0.25) away from them
     gap0 : initial distance between the cylinder's lowest point and the block (default 0)
     cell : ``"triangle"`` (default) or ``"quadrilateral"`` (recombined)
     half : build the right half x >= 0 only (symmetry edges sym1, sym2 on x = 0)
@@ -120,7 +122,7 @@ def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, 
     -------
     dict name -> (dim, number) of the physical groups created.
     """
-    p = check_parameters(radius, width, depth, zone, size, size_far, gap0, cell, half)
+    p = check_parameters(radius, width, depth, zone, size, size_far, growth, gap0, cell, half)
     R, w2, depth, zone, size, gap0 = p["radius"], p["width"] / 2, p["depth"], p["zone"], p["size"], p["gap0"]
     x1 = ARC_FACTOR * zone
     phi1 = math.asin(x1 / R)
@@ -147,7 +149,7 @@ def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, 
     gmsh.model.geo.mesh.setTransfiniteCurve(c1, max(2, math.ceil(R * phi1 / size)) + 1)
     gmsh.model.geo.mesh.setTransfiniteCurve(c2, max(2, math.ceil(zone / size)) + 1)
     return common.finish_symmetric(gmsh, sk, parts, p["cell"], parts["contact1"] + parts["contact2"], size,
-                                   p["size_far"], 0.5 * zone, 4.0 * zone, mesh=mesh)
+                                   p["size_far"], 0.5 * zone, p["growth"], mesh=mesh)
 
 
 def _main(argv=None):

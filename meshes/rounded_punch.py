@@ -19,8 +19,8 @@ under the flat part and ``gap0 + r - sqrt(r^2 - (|x| - w + r)^2)`` under the rou
 
 ``contact1`` is the punch's flat bottom and both rounded edges; ``contact2`` the block's top for
 ``|x| <= zone`` (default ``w - r / 4``, so that the block's contact nodes all face the punch).
-Both are meshed uniformly with elements of size ``size``, growing to ``size_far`` away from
-them; triangles or quadrilaterals.  The mesh is mirror-symmetric about ``x = 0``; ``half=True``
+Both are meshed uniformly with elements of size ``size``, growing by ``growth`` per unit distance
+up to ``size_far`` away from them; triangles or quadrilaterals.  The mesh is mirror-symmetric about ``x = 0``; ``half=True``
 builds the right half only, with symmetry edges ``sym1``, ``sym2`` on ``x = 0``.
 
 Physical groups (DESIGN.md)::
@@ -63,11 +63,11 @@ TAGS, CELLS = common.TAGS, common.CELLS
 
 #: default parameters of :func:`build` (zone 0.0: w - r / 4)
 DEFAULTS = dict(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zone=0.0, size=0.01,
-                size_far=0.25, gap0=0.0, cell="triangle", half=False)
+                size_far=0.25, growth=0.2, gap0=0.0, cell="triangle", half=False)
 
 
 def check_parameters(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zone=None, size=0.01,
-                     size_far=0.25, gap0=0.0, cell="triangle", half=False):
+                     size_far=0.25, growth=0.2, gap0=0.0, cell="triangle", half=False):
     """Validated, normalised parameters of :func:`build` as a dict (InputError / GeometryError)."""
     w = common.check_length("half_width", half_width)
     r = common.check_length("edge_radius", edge_radius)
@@ -90,13 +90,14 @@ def check_parameters(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, dep
         raise common.GeometryError(f"size must be at most edge_radius / 2 = {r / 2:g} (a few elements along each "
                                    f"rounded edge), got {size!r}")
     size_far = max(common.check_length("size_far", size_far), size)
+    growth = common.check_fraction("growth", growth)
     gap0 = float(gap0) if gap0 == 0 else common.check_length("gap0", gap0)
     return dict(half_width=w, edge_radius=r, height=height, width=width, depth=depth, zone=zone, size=size,
-                size_far=size_far, gap0=gap0, cell=common.check_cell(cell), half=bool(half))
+                size_far=size_far, growth=growth, gap0=gap0, cell=common.check_cell(cell), half=bool(half))
 
 
 def build(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zone=None, size=0.01, size_far=0.25,
-          gap0=0.0, cell="triangle", half=False, *, mesh=True):
+          growth=0.2, gap0=0.0, cell="triangle", half=False, *, mesh=True):
     """Build the rounded-punch geometry and mesh into the *current* gmsh model.
 
     Parameters
@@ -106,6 +107,7 @@ def build(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zon
     width, depth : the block [-width/2, width/2] x [-depth, 0] (default 4 x 2)
     zone : half-width of the block's contact boundary (default w - r / 4)
     size, size_far : element size along the contact boundaries / far from them (0.01, 0.25)
+    growth : growth of the element size per unit distance from the contact boundaries (0.2)
     gap0 : initial distance between the punch's flat bottom and the block (default 0)
     cell : ``"triangle"`` (default) or ``"quadrilateral"``
     half : the right half x >= 0 only (symmetry edges sym1, sym2)
@@ -115,7 +117,7 @@ def build(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zon
     -------
     dict name -> (dim, number) of the physical groups created.
     """
-    p = check_parameters(half_width, edge_radius, height, width, depth, zone, size, size_far, gap0, cell, half)
+    p = check_parameters(half_width, edge_radius, height, width, depth, zone, size, size_far, growth, gap0, cell, half)
     w, r, H, g0, size = p["half_width"], p["edge_radius"], p["height"], p["gap0"], p["size"]
     sk = common.MirrorSketch(gmsh.model.geo)
     parts = {}
@@ -143,7 +145,7 @@ def build(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zon
     tc(rnd, max(2, math.ceil(0.5 * math.pi * r / size)) + 1)
     tc(c2, max(2, math.ceil(p["zone"] / size)) + 1)
     return common.finish_symmetric(gmsh, sk, parts, p["cell"], parts["contact1"] + parts["contact2"], size,
-                                   p["size_far"], 2 * r, 2 * w, mesh=mesh)
+                                   p["size_far"], 2 * r, p["growth"], mesh=mesh)
 
 
 def _main(argv=None):
