@@ -22,7 +22,7 @@ coupling of the finite bodies): transitions that are (nearly) degenerate.
     python demos/mindlin.py                  # h = 0.01 (a/h ~ 10), F = 0.5, both methods, both cases
     python demos/mindlin.py --size 0.005 --methods exact --cases cylinder -o out
 
-A second case, ``blocks``, removes the coupling: two mirror-identical blocks (structured
+A second case, ``blocks``, removes the coupling: two mirror-identical blocks 3 x 3 (structured
 quadrilaterals, a conforming interface) carry the imposed gap (x - 1.5)^2 / (2 R), the
 small-strain gap of a Hertz contact put on a flat interface.  There normal and tangential contact
 decouple exactly, the nodes at +-x start to slip at the same alpha to rounding, and every
@@ -56,7 +56,7 @@ SIZE = 0.01
 FRICTION = 0.5
 DELTA = 0.02
 #: the decoupled variant: two mirror-identical blocks with an imposed gap (x - 1.5)^2 / (2 R)
-BLOCKS_NX, BLOCKS_RADIUS, BLOCKS_DELTA = 90, 10.0, 0.02
+BLOCKS_NX, BLOCKS_RADIUS, BLOCKS_DELTA, BLOCKS_HEIGHT = 90, 10.0, 0.02, 3.0
 Q_FINAL = 0.9  # Q(1) / (F P)
 ALPHA_TOL = 0.05
 METHODS = ("exact", "seed")
@@ -147,12 +147,13 @@ def cylinder_case(size=SIZE, friction=FRICTION, delta=DELTA, log=print):
 
 
 def blocks_case(nx=BLOCKS_NX, friction=FRICTION, delta=BLOCKS_DELTA, radius=BLOCKS_RADIUS, log=print):
-    """Two mirror-identical blocks 3 x 1 (structured quadrilaterals, matching interface) with the
+    """Two mirror-identical blocks 3 x 3 (structured quadrilaterals, matching interface) with the
     imposed gap (x - 1.5)^2 / (2 R) -- the small-strain gap of two cylinders of radius 2R, put on a
     conforming mesh.  The two bodies are mirror images across the interface, so normal and
     tangential contact decouple exactly: the nodes at 1.5 +- x start to slip at the same alpha (to
     rounding), which makes every stick-to-slip transition degenerate (two nodes at once)."""
-    base = cfcontact.two_blocks(nx=nx, ny=10, length=3.0, height=1.0, E=H.MODEL["E"], nu=H.MODEL["nu"],
+    base = cfcontact.two_blocks(nx=nx, ny=max(2, nx // 3), length=3.0, height=BLOCKS_HEIGHT, E=H.MODEL["E"],
+                                nu=H.MODEL["nu"],
                                 friction=friction, clamp=("bottom2",), tractions1={}, tractions2={},
                                 dirichlet={"top1": {"x": (0.0, 1.0), "y": (-delta, -delta)}})
     x = base.geometry.contact_points[:, 0]

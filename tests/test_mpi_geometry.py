@@ -1,0 +1,43 @@
+"""Real contact geometry under ``mpirun -n 2`` (issue #12, item 7): the pairing, the gap, the
+prescribed displacements and the solutions (both backends, an exact path) equal the serial ones."""
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+@pytest.mark.mpi
+def test_mpi_geometry_matches_serial(tmp_path, run_mpi):
+    sys.path.insert(0, HERE)
+    try:
+        import mpi_geometry_script as script
+    finally:
+        sys.path.remove(HERE)
+    out = tmp_path / "mpi.npz"
+    run_mpi(2, os.path.join(HERE, "mpi_geometry_script.py"), str(out), timeout=600)
+    par = np.load(out)
+    assert int(par["size"]) == 2
+    for name in script.cases():
+        ranges = par[f"{name}:ranges"]
+        assert 0 < ranges[1] < ranges[2], f"{name}: the DOFs must really be split over 2 ranks"
+        assert np.all(par[f"{name}:owned_cells"] > 0), name
+        serial = script.gathered(script.build(name))
+        assert set(serial) == {k.split(":", 1)[1] for k in par.files if k.startswith(name + ":")} - {
+            "ranges", "owned_cells"}, name
+        for key, ref in serial.items():
+            got = par[f"{name}:{key}"]
+            assert got.shape == ref.shape, (name, key, got.shape, ref.shape)
+            if key in ("contact_nodes", "no_tangent", "path_nodes") or key.startswith("codes"):
+                assert np.array_equal(got, ref), (name, key)
+            else:
+                scale = max(np.abs(ref).max(initial=0.0), 1e-300)
+                assert np.abs(got - ref).max(initial=0.0) <= 1e-10 * scale, (name, key)
+        if f"{name}:yc1" in par.files:  # the condensed backend agrees with the full one
+            y, yc = par[f"{name}:y1"], par[f"{name}:yc1"]
+            assert np.abs(y - yc).max() <= 1e-8 * np.abs(y).max(), name
+    assert par["half:no_tangent"][0] == 1 and par["obstacle:gap"].min() > 0
+    assert len(par["cylinder:path_alphas"]) >= 1
