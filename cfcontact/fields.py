@@ -136,13 +136,16 @@ def _check_u(geometry, u):
     return u
 
 
-def displacement_gradients(geometry, u) -> np.ndarray:
-    """(C, 2, 2) displacement gradients G[c, i, j] = ∂u_i/∂x_j (P1 triangle; Q1 at the cell centre)."""
+def displacement_gradients(geometry, u, alpha=None) -> np.ndarray:
+    """(C, 2, 2) displacement gradients G[c, i, j] = ∂u_i/∂x_j (P1 triangle; Q1 at the cell centre).
+    Prescribed non-zero displacements (``geometry.prescribed``) enter at ``alpha`` (default: the
+    alpha of a Solution ``u``; none for a plain vector)."""
     if geometry is None:
         raise InputError("stresses need the model's ContactGeometry (a lumped model has none)")
+    alpha = getattr(u, "alpha", None) if alpha is None else alpha
     u = _check_u(geometry, u)
     P = np.asarray(geometry.points, dtype=float)[:, :2]
-    U = geometry.displacement_field(u)[:, :2]
+    U = geometry.displacement_field(u, alpha)[:, :2]
     cells = np.asarray(geometry.cells)
     if cells.ndim != 2 or cells.shape[1] not in (3, 4):
         raise InputError(f"geometry.cells must be a (C, 3) or (C, 4) array, got shape {cells.shape}")
@@ -165,9 +168,10 @@ def displacement_gradients(geometry, u) -> np.ndarray:
     return G
 
 
-def cell_stress(geometry, u, material=None) -> np.ndarray:
-    """(C, 4) stresses (σxx, σyy, σzz, σxy) per cell; ``material`` defaults to ``geometry.material``."""
-    G = displacement_gradients(geometry, u)
+def cell_stress(geometry, u, material=None, alpha=None) -> np.ndarray:
+    """(C, 4) stresses (σxx, σyy, σzz, σxy) per cell; ``material`` defaults to ``geometry.material``;
+    ``alpha`` as in :func:`displacement_gradients`."""
+    G = displacement_gradients(geometry, u, alpha)
     E, nu, plane = cell_material(geometry, geometry.material if material is None else material)
     lam = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
     mu = E / (2.0 * (1.0 + nu))
@@ -180,14 +184,15 @@ def cell_stress(geometry, u, material=None) -> np.ndarray:
     return np.column_stack([lam2 * tr + 2.0 * mu * exx, lam2 * tr + 2.0 * mu * eyy, szz, 2.0 * mu * exy])
 
 
-def von_mises(geometry, u, material=None) -> np.ndarray:
+def von_mises(geometry, u, material=None, alpha=None) -> np.ndarray:
     """Per-cell von Mises stress of the free-DOF displacement ``u`` (a vector or a Solution).
 
     ``material``: ``{"E": ..., "nu": ..., "plane": "strain" | "stress"}`` with E and nu numbers or
     one value per body (``{"body1=1": 2.1e11, "body2=2": 2.1e8}``); default ``geometry.material``
     (stored by the assembly layer and in saved paths).  Returns a (C,) array in the unit of E.
+    Prescribed non-zero displacements enter at ``alpha`` (default: a Solution's own alpha).
     """
-    s = cell_stress(geometry, u, material)
+    s = cell_stress(geometry, u, material, alpha)
     sxx, syy, szz, sxy = s.T
     return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3.0 * sxy ** 2)
 
@@ -318,7 +323,7 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
                 else:
                     alpha = float(getattr(sol, "alpha", k))
                 codes = contact_state_codes(geometry, _states_of(sol))
-                U = geometry.displacement_field(u)[:, :2]
+                U = geometry.displacement_field(u, alpha)[:, :2]
                 fh.write(f'      <Grid Name="{grid_name(k, alpha)}" GridType="Uniform">\n'
                          f'        <Time Value="{k}"/>\n'
                          f'        <Information Name="alpha" Value="{alpha!r}"/>\n')
@@ -336,7 +341,7 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
                 fh.write(_attribute("lam_t", "Node", _pair_field(geometry, sol.lam_t), 8))
                 fh.write(_attribute("body", "Cell", body, 8))
                 if material is not None:
-                    fh.write(_attribute("von_mises", "Cell", von_mises(geometry, u, material), 8))
+                    fh.write(_attribute("von_mises", "Cell", von_mises(geometry, u, material, alpha), 8))
                 fh.write("      </Grid>\n")
                 count += 1
             if count == 0:

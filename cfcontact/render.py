@@ -221,22 +221,23 @@ def _cells_and_types(cells):
     return np.asarray(flat, dtype=np.int64), types
 
 
-def _deformed_points(geometry, u, magnification):
+def _deformed_points(geometry, u, magnification, alpha=None):
     P = np.asarray(geometry.points, dtype=float)[:, :2]
-    U = np.zeros_like(P) if u is None else geometry.displacement_field(np.asarray(u, dtype=float))[:, :2]
+    U = np.zeros_like(P) if u is None else geometry.displacement_field(np.asarray(u, dtype=float), alpha)[:, :2]
     X = P + magnification * U
     return np.column_stack([X, np.zeros(len(X))])
 
 
-def to_grid(geometry, u=None, magnification: float = 1.0, stress=None):
-    """pyvista.UnstructuredGrid of the mesh, points moved by magnification * displacement_field(u).
+def to_grid(geometry, u=None, magnification: float = 1.0, stress=None, alpha=None):
+    """pyvista.UnstructuredGrid of the mesh, points moved by magnification * displacement_field(u, alpha)
+    (``alpha``: where prescribed non-zero displacements are taken, see ``ContactGeometry.prescribed``).
 
     Cell data: "body" (geometry.cell_body) and, if given, "stress" (one value per cell).
     """
     import pyvista as pv
 
     cells, types = _cells_and_types(geometry.cells)
-    grid = pv.UnstructuredGrid(cells, types, _deformed_points(geometry, u, magnification))
+    grid = pv.UnstructuredGrid(cells, types, _deformed_points(geometry, u, magnification, alpha))
     grid.cell_data["body"] = np.asarray(geometry.cell_body)
     if stress is not None:
         stress = np.asarray(stress, dtype=float).ravel()
@@ -252,13 +253,14 @@ def model_size(geometry) -> float:
     return float(ext.max()) if P.size else 1.0
 
 
-def auto_magnification(geometry, us, fraction: float = 0.1) -> float:
-    """Scale making the largest nodal displacement of any of ``us`` equal ``fraction`` * model size."""
+def auto_magnification(geometry, us, fraction: float = 0.1, alphas=None) -> float:
+    """Scale making the largest nodal displacement of any of ``us`` (at ``alphas``, for prescribed
+    displacements) equal ``fraction`` * model size."""
     umax = 0.0
-    for u in us:
+    for k, u in enumerate(us):
         if u is None:
             continue
-        U = geometry.displacement_field(np.asarray(u, dtype=float))
+        U = geometry.displacement_field(np.asarray(u, dtype=float), None if alphas is None else alphas[k])
         umax = max(umax, float(np.linalg.norm(U, axis=1).max(initial=0.0)))
     if umax == 0.0 or not np.isfinite(umax):
         return 1.0
@@ -292,9 +294,9 @@ def _check_solution(geometry, solution):
     return u
 
 
-def _contact_xy(geometry, u, magnification):
+def _contact_xy(geometry, u, magnification, alpha=None):
     """Deformed positions of the body-1 node of each contact pair."""
-    X = _deformed_points(geometry, u, magnification)
+    X = _deformed_points(geometry, u, magnification, alpha)
     nodes = np.asarray(geometry.contact_nodes)
     if nodes.size == 0:
         return np.zeros((0, 3))
@@ -306,13 +308,33 @@ def _point_size(window_size, cols=1, rows=1):
     return float(max(7, min(w / cols, h / rows) / 45))
 
 
+OBSTACLE_SAMPLES = 120
+
+
+def _obstacle_outline(obstacle, cp):
+    """(OBSTACLE_SAMPLES, 2) points of a rigid obstacle's surface (``ContactGeometry.obstacle``) along
+    the contact points ``cp``, a little beyond them."""
+    if obstacle.get("kind") == "circle":
+        c, r = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+        ang = np.unwrap(np.sort(np.arctan2(cp[:, 1] - c[1], cp[:, 0] - c[0])))
+        pad = 0.15 * max(ang[-1] - ang[0], 0.2)
+        t = np.linspace(ang[0] - pad, ang[-1] + pad, OBSTACLE_SAMPLES)
+        return c + r * np.column_stack([np.cos(t), np.sin(t)])
+    p, nv = np.asarray(obstacle["point"], dtype=float), np.asarray(obstacle["normal"], dtype=float)
+    d = np.array([-nv[1], nv[0]])
+    s = (cp - p) @ d
+    pad = 0.1 * max(s.max() - s.min(), 1e-12)
+    return p + np.outer(np.linspace(s.min() - pad, s.max() + pad, OBSTACLE_SAMPLES), d)
+
+
 def _draw(plotter, geometry, solution, magnification, stress=None, point_size=10.0, legend=True,
           legend_size=(0.2, 0.2), legend_loc="upper right", clim=None, title=None, text=None, font_size=12, scalar_bar=True):
     """Add one deformed configuration to the current subplot (actors named, so a redraw replaces them)."""
     import pyvista as pv
 
     u = None if solution is None else _check_solution(geometry, solution)
-    grid = to_grid(geometry, u, magnification, stress)
+    alpha = getattr(solution, "alpha", None)
+    grid = to_grid(geometry, u, magnification, stress, alpha)
     if stress is not None and clim is None:
         clim = (float(np.min(stress)), float(np.max(stress)))
     bodies = np.asarray(geometry.cell_body)
@@ -329,17 +351,21 @@ def _draw(plotter, geometry, solution, magnification, stress=None, point_size=10
                                label_font_size=12, n_labels=4, fmt="%.3g")
     nodes = np.asarray(geometry.contact_nodes)
     if nodes.size and np.all(nodes[:, 1] < 0):
-        # rigid foundation: a line through the (undeformed) contact points
+        # rigid foundation: a line through the (undeformed) contact points, or the rigid obstacle
         cp = np.asarray(geometry.contact_points, dtype=float)[:, :2]
-        tang = np.asarray(geometry.tangents, dtype=float)
-        order = np.argsort(cp @ tang[0]) if len(cp) else []
-        pts = np.column_stack([cp[order], np.zeros(len(cp))])
+        obstacle = getattr(geometry, "obstacle", None)
+        if obstacle:
+            pts = np.column_stack([_obstacle_outline(obstacle, cp), np.zeros(OBSTACLE_SAMPLES)])
+        else:
+            tang = np.asarray(geometry.tangents, dtype=float)
+            order = np.argsort(cp @ tang[0]) if len(cp) else []
+            pts = np.column_stack([cp[order], np.zeros(len(cp))])
         if len(pts) >= 2:
             plotter.add_mesh(pv.lines_from_points(pts), color=_rgb(FOUNDATION_COLOR), line_width=3,
                              name="foundation")
     states = _states(solution, len(nodes)) if solution is not None else []
     if states:
-        xy = _contact_xy(geometry, u, magnification)
+        xy = _contact_xy(geometry, u, magnification, alpha)
         xy[:, 2] = 1e-3 * model_size(geometry)  # in front of the bodies
         labels = []
         for state in STATE_COLORS:
@@ -402,11 +428,11 @@ def _aspect(window_size, rows=1, cols=1):
     return (window_size[0] / cols) / (window_size[1] / rows)
 
 
-def _bounds(geometry, us, magnification):
+def _bounds(geometry, us, magnification, alphas=None):
     lo = np.full(2, np.inf)
     hi = np.full(2, -np.inf)
-    for u in us:
-        X = _deformed_points(geometry, u, magnification)[:, :2]
+    for k, u in enumerate(us):
+        X = _deformed_points(geometry, u, magnification, None if alphas is None else alphas[k])[:, :2]
         lo = np.minimum(lo, X.min(axis=0))
         hi = np.maximum(hi, X.max(axis=0))
     pad = 0.04 * max(hi - lo)
@@ -463,13 +489,14 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
     u = _check_solution(geometry, solution)
     if show_stress and stress is None:
         raise InputError("show_stress=True needs stress= (one value per cell, e.g. cfcontact.fields.von_mises)")
-    mag = auto_magnification(geometry, [u]) if magnification is None else float(magnification)
+    mag = (auto_magnification(geometry, [u], alphas=[getattr(solution, "alpha", None)]) if magnification is None
+           else float(magnification))
     plotter = _new_plotter(window_size)
     try:
         _draw(plotter, geometry, solution, mag, stress=stress, point_size=_point_size(window_size),
               legend=legend, title=title, text=_info_text(solution, mag))
-        _view(plotter, _bounds(geometry, [u], mag), _aspect(window_size), legend=legend,
-              top=0.88 if title else 0.95)
+        _view(plotter, _bounds(geometry, [u], mag, [getattr(solution, "alpha", None)]), _aspect(window_size),
+              legend=legend, top=0.88 if title else 0.95)
         plotter.screenshot(filename)
     finally:
         plotter.close()
@@ -506,12 +533,13 @@ def render_panel(geometry, solutions: Sequence, filename, magnification: Optiona
         raise InputError(f"stresses has {len(stresses)} entries for {len(solutions)} solutions")
     if titles is not None and len(titles) != len(solutions):
         raise InputError(f"titles has {len(titles)} entries for {len(solutions)} solutions")
-    mag = auto_magnification(geometry, us) if magnification is None else float(magnification)
+    alphas = [getattr(s, "alpha", None) for s in solutions]
+    mag = auto_magnification(geometry, us, alphas=alphas) if magnification is None else float(magnification)
     clim = None
     if stresses is not None:
         allv = np.concatenate([np.asarray(s, dtype=float).ravel() for s in stresses])
         clim = (float(allv.min()), float(allv.max()))
-    bounds = _bounds(geometry, us, mag)
+    bounds = _bounds(geometry, us, mag, alphas)
     plotter = _new_plotter(window_size, shape=(rows, cols))
     try:
         psize = _point_size(window_size, cols, rows)
@@ -626,7 +654,8 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
         values = [np.asarray(stress(s), dtype=float).ravel() for s in sols]
         allv = np.concatenate(values)
         clim = (float(allv.min()), float(allv.max()))
-    mag = auto_magnification(geometry, us) if magnification is None else float(magnification)
+    alphas = [getattr(s, "alpha", None) for s in sols]
+    mag = auto_magnification(geometry, us, alphas=alphas) if magnification is None else float(magnification)
     ext = os.path.splitext(filename)[1].lower()
     kind, note = "png-frames", ""
     if ext == ".gif":
@@ -645,7 +674,7 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
     target = frame_dir if kind == "png-frames" else filename
     os.makedirs(target if kind == "png-frames" else os.path.dirname(os.path.abspath(target)), exist_ok=True)
 
-    bounds = _bounds(geometry, us, mag)
+    bounds = _bounds(geometry, us, mag, alphas)
     images, files = [], []
     plotter = _new_plotter(window_size)
     try:
