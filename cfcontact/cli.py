@@ -475,7 +475,7 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     from cfcontact.path import PathOptions
 
     try:
-        PathOptions(**{k: v for k, v in path.items() if k in PathOptions.__dataclass_fields__}).validate()
+        PathOptions(**{k: v for k, v in path.items() if k in PathOptions.names()})
     except InputError as exc:
         raise CaseError(f"[path] {exc}") from None
     case["path"] = path
@@ -798,23 +798,6 @@ def _jsonable(o):
 
 
 # ============================================================ path reports
-def multiplicity_intervals(path):
-    """[(alpha_lo, alpha_hi, k)]: number of distinct solutions between consecutive branch ends (merged)."""
-    import numpy as np
-
-    ends = sorted({float(e) for b in path.branches for e in path.branch_extent(b) if np.isfinite(e)})
-    out = []
-    for a, b in zip(ends[:-1], ends[1:]):
-        if b <= a:
-            continue
-        k = path.multiplicity(0.5 * (a + b))
-        if out and out[-1][2] == k:
-            out[-1] = (out[-1][0], b, k)
-        else:
-            out.append((a, b, k))
-    return out
-
-
 def path_report(path) -> dict:
     """Everything ``info`` shows, as a JSON-able dict."""
     mult, at = path.max_multiplicity()
@@ -824,7 +807,7 @@ def path_report(path) -> dict:
         "points": len(path.alphas), "branches": len(path.branches),
         "transitions": [t.to_dict() for t in path.transitions],
         "folds": [t.alpha for t in path.folds],
-        "multiplicity": [{"alpha_lo": a, "alpha_hi": b, "solutions": k} for a, b, k in multiplicity_intervals(path)],
+        "multiplicity": [{"alpha_lo": a, "alpha_hi": b, "solutions": k} for a, b, k in path.multiplicity_intervals()],
         "max_multiplicity": mult, "alpha_of_max": at,
         "events": [e.to_dict() for e in path.events], "stats": path.stats, "options": path.options,
     })
@@ -918,7 +901,7 @@ def write_outputs(path, case, outdir, timings, args, system=None):
         for fmt in out["plot_formats"]:
             save_figure(fig, os.path.join(outdir, f"path.{fmt}"))
             files.append(f"path.{fmt}")
-        if multiplicity_intervals(path):
+        if path.multiplicity_intervals():
             fig = plot_multiplicity(path)
             for fmt in out["plot_formats"]:
                 save_figure(fig, os.path.join(outdir, f"multiplicity.{fmt}"))
@@ -1111,7 +1094,7 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
 
     p = case["path"]
     method = p["method"]
-    opts = {k: v for k, v in p.items() if k in PathOptions.__dataclass_fields__}
+    opts = PathOptions(**{k: v for k, v in p.items() if k in PathOptions.names()})
     solver = select_solver(system, method, p.get("backend", "auto"))
     runner = _Runner(args, solver, progress, t_start, resume["path"] if resume else None)
 
@@ -1121,7 +1104,7 @@ def _trace(system, case, args, partial, resume, progress, t_start, timings):
             while True:
                 runner.reason = None
                 path = trace_path(system, p["alpha_start"], p["alpha_end"], method=method,
-                                  options=PathOptions(callback=runner.on_point, **opts), solver=solver, resume=resume)
+                                  options=opts, callback=runner.on_point, solver=solver, resume=resume)
                 if path.status != "stopped by callback" or runner.reason is None:
                     break
                 progress.clear()
