@@ -398,11 +398,11 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     else:
         if kind == "inclined" and "angle" not in geometry:
             raise CaseError("[geometry] angle is missing: kind = 'inclined' needs the angle in degrees")
-        from cfcontact.models import _meshes_module
+        from cfcontact.meshes import arc_on_block, two_blocks
 
         try:
-            script = "arc_on_block" if kind == "arc" else "two_blocks"
-            _meshes_module(script).check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
+            script = arc_on_block if kind == "arc" else two_blocks
+            script.check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
         except (InputError, ValueError) as exc:
             raise CaseError(f"[geometry] {exc}") from None
     case["geometry"] = geometry
@@ -496,9 +496,9 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
 def _model_groups(kind, geometry) -> dict:
     """{(dim, number): name} of the physical groups of the case's model."""
     if kind != "msh":
-        from cfcontact.models import _meshes_module
+        from cfcontact.meshes import arc_on_block, two_blocks
 
-        tags = _meshes_module("arc_on_block" if kind == "arc" else "two_blocks").TAGS
+        tags = (arc_on_block if kind == "arc" else two_blocks).TAGS
         foundation = kind == "block_on_foundation"
         return {(d, n): name for name, (d, n) in tags.items() if not (foundation and (n == 2 or 20 <= n < 30))}
     import gmsh

@@ -6,11 +6,7 @@ geometry scripts are imported inside the functions.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import math
-import os
-import sys
 from types import MappingProxyType
 
 from cfcontact.errors import InputError
@@ -24,24 +20,6 @@ __all__ = ["two_blocks", "arc_on_block", "DEFAULT_TRACTIONS1", "DEFAULT_TRACTION
 DEFAULT_TRACTIONS1 = MappingProxyType({"top1": (2.0e7, -1.0e8)})
 #: Default surface tractions of the load f2: mostly shear (1e8), less pressure (2e7).
 DEFAULT_TRACTIONS2 = MappingProxyType({"top1": (1.0e8, -2.0e7)})
-
-
-def _meshes_module(name):
-    """``cfcontact.meshes.<name>``; from the source tree's ``meshes/`` when not installed."""
-    full = f"cfcontact.meshes.{name}"
-    try:
-        return importlib.import_module(full)
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("cfcontact.meshes", full):
-            raise
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "meshes", f"{name}.py")
-    if not os.path.isfile(path):
-        raise ModuleNotFoundError(f"No module named {full!r} (and no {path})", name=full)
-    spec = importlib.util.spec_from_file_location(full, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[full] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def _rotate(vec, angle):
@@ -123,7 +101,7 @@ def two_blocks(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = _meshes_module("two_blocks")
+    from cfcontact.meshes import two_blocks as geo  # imports gmsh
     params = geo.check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
     if clamp is None:
         clamp = ("left1",) if foundation else ("left1", "left2")
@@ -174,7 +152,7 @@ def arc_on_block(
     body 1 sits in it, its bottom the matching convex arc, its sides ``height`` high above the
     ends of the arc, its top flat.  Body 2 is ``height2`` (default ``height``) thick below the
     lowest point.  ``nx`` cells along the arc, ``ny`` / ``ny2`` across body 1 / body 2
-    (structured quadrilaterals or triangles, see ``meshes/arc_on_block.py``).  The contact
+    (structured quadrilaterals or triangles, see :mod:`cfcontact.meshes.arc_on_block`).  The contact
     normals are radial: they turn by ``2 * half_angle`` along the interface.
 
     The interface is **conforming** (the bodies touch along the whole arc; initial gaps are not
@@ -189,7 +167,7 @@ def arc_on_block(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = _meshes_module("arc_on_block")
+    from cfcontact.meshes import arc_on_block as geo  # imports gmsh
     params = geo.check_parameters(radius=radius, half_angle=half_angle, height=height, height2=height2,
                                   nx=nx, ny=ny, ny2=ny2, cell=cell)
     kwargs = dict(

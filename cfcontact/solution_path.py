@@ -502,22 +502,8 @@ class SolutionPath:
         return self.ys[:, idx]
 
     def component_index(self, spec) -> int:
-        n, m = self.n, self.m
-        if isinstance(spec, (int, np.integer)):
-            idx = int(spec)
-            limit = n + 2 * m
-        else:
-            name, i = spec
-            offsets = {"u": (0, n), "lam_n": (n, m), "lam_t": (n + m, m)}
-            if name not in offsets:
-                raise InputError(f"unknown component {name!r}; valid: 'u', 'lam_n', 'lam_t' or an index of y")
-            off, limit = offsets[name]
-            if not (0 <= int(i) < limit):
-                raise InputError(f"component index {i} out of range for {name!r} (0..{limit - 1})")
-            return off + int(i)
-        if not (0 <= idx < limit):
-            raise InputError(f"component index {idx} out of range (0..{limit - 1})")
-        return idx
+        """The index in y of a component (see :func:`component_index`)."""
+        return component_index(self.n, self.m, spec)
 
     def summary(self) -> dict:
         mult, at = self.max_multiplicity()
@@ -623,3 +609,23 @@ def _same_point(a, b, n, rtol) -> bool:
         x, z = (x if xl else x[n:]), (z if zl else z[n:])
     return bool(np.abs(x - z).max(initial=0.0) <= rtol * max(np.abs(x).max(initial=0.0),
                                                              np.abs(z).max(initial=0.0), 1e-300))
+
+
+def component_index(n: int, m: int, spec) -> int:
+    """Index in y = (u, lam_n, lam_t) (n DOFs, m contact nodes) of ("lam_n", i), ("lam_t", i),
+    ("u", dof) or an index of y; InputError when out of range."""
+    if isinstance(spec, (int, np.integer)):
+        idx = int(spec)
+        limit = n + 2 * m
+    else:
+        name, i = spec
+        offsets = {"u": (0, n), "lam_n": (n, m), "lam_t": (n + m, m)}
+        if name not in offsets:
+            raise InputError(f"unknown component {name!r}; valid: 'u', 'lam_n', 'lam_t' or an index of y")
+        off, limit = offsets[name]
+        if not (0 <= int(i) < limit):
+            raise InputError(f"component index {i} out of range for {name!r} (0..{limit - 1})")
+        return off + int(i)
+    if not (0 <= idx < limit):
+        raise InputError(f"component index {idx} out of range (0..{limit - 1})")
+    return idx

@@ -16,7 +16,7 @@ two_blocks         two_blocks.toml             two stacked blocks (the seed's mo
 foundation         foundation.toml             one block on a rigid foundation
 arc                arc.toml                    convex arc bottom in a matching concave seat
 inclined           inclined.toml               the two blocks rotated by 20 degrees
-user_msh           user_msh.toml               a user's .msh (written here by meshes/two_blocks.py)
+user_msh           user_msh.toml               a user's .msh (written here by cfcontact.meshes.two_blocks)
 =================  ==========================  ==============================================
 """
 
@@ -43,9 +43,9 @@ VARIANTS = {
 
 
 def _user_msh(case_file, workdir):
-    """A copy of user_msh.toml in workdir, next to the mesh it names (written by meshes/two_blocks.py)."""
+    """A copy of user_msh.toml in workdir, next to the mesh it names (written by ``python -m cfcontact.meshes.two_blocks``)."""
     shutil.copy(case_file, os.path.join(workdir, os.path.basename(case_file)))
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"),
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks",
                     os.path.join(workdir, "two_blocks_6x2.msh"), "--nx", "6", "--ny", "2"],
                    check=True, capture_output=True)
     return os.path.join(workdir, os.path.basename(case_file))

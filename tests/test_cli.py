@@ -81,7 +81,7 @@ def cases(tmp_path_factory):
     for name in os.listdir(CASES):
         if name.endswith(".toml"):
             shutil.copy(os.path.join(CASES, name), d / name)
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), str(d / MSH_NAME),
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks", str(d / MSH_NAME),
                     "--nx", "6", "--ny", "2"], check=True, capture_output=True, env=_env(), cwd=ROOT)
     return d
 

@@ -14,7 +14,6 @@ from matplotlib.image import imread
 import cfcontact
 from cfcontact import cli
 from cfcontact.errors import GeometryError, InputError
-from cfcontact.models import _meshes_module
 from cfcontact.path import SolutionPath
 from reference import frictionless_dual
 
@@ -62,7 +61,7 @@ def _copy_case(tmp_path, name):
     (dict(cell="hexagon"), ["cell", "quadrilateral", "hexagon"], InputError),
 ])
 def test_arc_parameters_validated(kwargs, words, error):
-    geo = _meshes_module("arc_on_block")
+    from cfcontact.meshes import arc_on_block as geo
     with pytest.raises(error) as info:
         geo.check_parameters(**kwargs)
     for w in words:
@@ -132,7 +131,7 @@ def test_arc_frictionless_against_dual_qp(arc_model):
 
 def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
     msh = tmp_path / "arc.msh"
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(msh),
+    proc = subprocess.run([sys.executable, "-m", "cfcontact.meshes.arc_on_block", str(msh),
                            "--half-angle", "40", "--nx", "12", "--ny", "3"],
                           capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
     assert proc.returncode == 0, proc.stderr
@@ -140,7 +139,7 @@ def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
                                                tractions1={"top1": (2e7, -1e8)}, tractions2={"top1": (1e8, -2e7)})
     assert (system.n, system.m) == (arc_model.n, arc_model.m)
     np.testing.assert_allclose(system.geometry.normals, arc_model.geometry.normals, rtol=0, atol=1e-12)
-    bad = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(tmp_path / "b.msh"),
+    bad = subprocess.run([sys.executable, "-m", "cfcontact.meshes.arc_on_block", str(tmp_path / "b.msh"),
                           "--half-angle", "120"], capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
     assert bad.returncode == 2 and "half_angle" in bad.stderr and not (tmp_path / "b.msh").exists()
 

@@ -1,18 +1,11 @@
-"""What the gmsh scripts of ``meshes/`` share: the tag convention and the parameter checks.
-
-Importable as ``cfcontact.meshes.common`` and, when a script runs stand-alone
-(``python3 meshes/two_blocks.py ...``), from the script's folder; see :func:`load`.
-"""
+"""What the gmsh scripts of :mod:`cfcontact.meshes` share: the tag convention and the parameter checks."""
 
 from __future__ import annotations
 
 import math
 import operator
 
-try:  # typed errors of the package when available; both are ValueErrors
-    from cfcontact.errors import GeometryError, InputError
-except Exception:  # pragma: no cover - running as a stand-alone script
-    InputError = GeometryError = ValueError
+from cfcontact.errors import GeometryError, InputError  # noqa: F401  (GeometryError: for the scripts)
 
 #: physical group numbers of every model (DESIGN.md; README "Tag convention")
 TAGS = {
