@@ -54,15 +54,16 @@ def _user_msh(case_file, workdir):
 def picture(variant, output, window_size=(600, 360), log=print):
     """Solve one point of the variant's case and render it to ``<output>/<variant>.png``."""
     import cfcontact
-    from cfcontact import cli, render
+    from cfcontact import render
+    from cfcontact.case import build_system, load_case
 
     case_name, alpha, title = VARIANTS[variant]
     case_file = os.path.join(CASES, case_name)
     with tempfile.TemporaryDirectory() as tmp:
         if variant == "user_msh":
             case_file = _user_msh(case_file, tmp)
-        case = cli.load_case(case_file)
-        system = cli.build_system(case)
+        case = load_case(case_file)
+        system = build_system(case)
     sol = cfcontact.ssnm(system, alpha)
     os.makedirs(output, exist_ok=True)
     fn = os.path.join(output, f"{variant}.png")

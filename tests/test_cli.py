@@ -12,7 +12,8 @@ import pytest
 from matplotlib.image import imread
 
 import cfcontact
-from cfcontact import cli
+from cfcontact import case as case_file
+from cfcontact import cli, run
 from cfcontact.path import SolutionPath
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -312,17 +313,17 @@ def test_time_limit_and_resume(tmp_path, small_run):
 
 
 def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
-    on_point = cli._Runner.on_point
+    on_point = run.Runner.on_point
 
     def interrupt_at_40(self, pt):
         if pt.index == 40:
             signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
         return on_point(self, pt)
 
-    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_40)
+    monkeypatch.setattr(run.Runner, "on_point", interrupt_at_40)
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q"]) == 130
-    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    monkeypatch.setattr(run.Runner, "on_point", on_point)
     state = json.loads((tmp_path / "case_out.partial" / "checkpoint" / "state.json").read_text())
     assert "Ctrl-C" in state["reason"]
     assert cli.main(["run", case, "-q", "--resume"]) == 0
@@ -332,8 +333,8 @@ def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
 
 def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkeypatch):
     saves = []
-    save = cli.save_checkpoint
-    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    save = run.save_checkpoint
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
     assert len(saves) > 100 and set(saves) == {"checkpoint"}
@@ -358,7 +359,7 @@ def test_failure_removes_partial_folder(tmp_path, monkeypatch, capsys):
     def boom(*a, **k):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(cli, "write_outputs", boom)
+    monkeypatch.setattr(run, "write_outputs", boom)
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case]) == 1
     assert "boom" in capsys.readouterr().err
@@ -469,17 +470,17 @@ def test_exact_stop_and_resume(tmp_path, exact_run, stop_args, code):
 
 def test_exact_stop_twice_ctrl_c_and_resume(tmp_path, exact_run, monkeypatch):
     """Ctrl-C, then a stop condition on the resumed run, then the rest: same result."""
-    on_point = cli._Runner.on_point
+    on_point = run.Runner.on_point
 
     def interrupt_at_4(self, pt):
         if pt.index == 4:
             signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
         return on_point(self, pt)
 
-    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_4)
+    monkeypatch.setattr(run.Runner, "on_point", interrupt_at_4)
     case = _write(tmp_path, EXACT)
     assert cli.main(["run", case, "-q"]) == 130
-    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    monkeypatch.setattr(run.Runner, "on_point", on_point)
     ck = tmp_path / "case_out.partial" / "checkpoint"
     state = json.loads((ck / "state.json").read_text())
     assert "Ctrl-C" in state["reason"] and state["resumable"]
@@ -492,8 +493,8 @@ def test_exact_stop_twice_ctrl_c_and_resume(tmp_path, exact_run, monkeypatch):
 
 def test_exact_periodic_checkpoints_do_not_change_the_path(tmp_path, exact_run, monkeypatch):
     saves = []
-    save = cli.save_checkpoint
-    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    save = run.save_checkpoint
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
     case = _write(tmp_path, EXACT)
     assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
     ref = SolutionPath.load(os.path.join(exact_run[1], "path"))
@@ -508,7 +509,7 @@ def test_windowed_tractions_in_a_case_file(tmp_path):
     case = _write(tmp_path, '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\n[loads.f1]\n'
                             'top1 = [[0.0, -1.0e6], {value = [2.0e5, -3.0e5], x = [1.5, 2.5]}]\n'
                             '[loads.f2]\nbottom2 = {value = [1.0e5, 0.0], x = [0.0, 1.0]}\n')
-    system = cli.build_system(cli.load_case(case))
+    system = case_file.build_system(case_file.load_case(case))
     ref = cfcontact.two_blocks(nx=6, ny=2, tractions1={"top1": [(0.0, -1.0e6), {"value": (2.0e5, -3.0e5), "x": (1.5, 2.5)}]},
                                tractions2={"bottom2": {"value": (1.0e5, 0.0), "x": (0.0, 1.0)}})
     for a, b in zip(system.loads_numpy(), ref.loads_numpy()):

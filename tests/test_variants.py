@@ -12,6 +12,7 @@ import pytest
 from matplotlib.image import imread
 
 import cfcontact
+from cfcontact import case as case_file
 from cfcontact import cli
 from cfcontact.errors import GeometryError, InputError
 from cfcontact.path import SolutionPath
@@ -184,7 +185,7 @@ def test_arc_case_tags_and_default_clamps(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "base" in err and "bottom2=22" in err
     # default clamps left1 + bottom2: both bodies held, the model builds
-    system = cli.build_system(cli.validate_case({"geometry": {"kind": "arc", "nx": 4, "ny": 1}}))
+    system = case_file.build_system(case_file.validate_case({"geometry": {"kind": "arc", "nx": 4, "ny": 1}}))
     assert system.m == 5 and system.info["clamp"] == ["left1=14", "bottom2=22"]
 
 
@@ -235,7 +236,7 @@ def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
     finally:
         sys.path.pop(0)
     case = _copy_case(tmp_path, "soft_layer.toml")
-    system = cli.build_system(cli.load_case(case))
+    system = case_file.build_system(case_file.load_case(case))
     ref = demo.build(0.6)
     assert (system.n, system.m) == (1320, 30)
     for a, b in zip(system.loads_numpy(), ref.loads_numpy()):
