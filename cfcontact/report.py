@@ -1,4 +1,5 @@
-"""Reports of a traced path: what ``cfcontact info`` prints and ``summary.json`` holds.
+"""Reports of a traced path: what ``cfcontact info`` prints and ``summary.json`` holds, and the
+worst residual of its stored points (the demo's and the benchmark's check).
 
 :func:`path_report` gathers status, transitions, folds, the multiplicity over alpha
 (:meth:`~cfcontact.solution_path.SolutionPath.multiplicity_intervals`), events, solver
@@ -8,6 +9,17 @@ statistics and options as strict JSON data; :func:`format_report` renders it as 
 from __future__ import annotations
 
 from cfcontact.jsonio import jsonable
+from cfcontact.ssnm import verify
+
+
+def worst_residual(system, path, solver=None, batch=128, indices=None, points=None) -> float:
+    """Worst relative violation of (1)-(3) over the stored points of a path (or the points
+    ``indices``); lazy displacements are formed in batches and dropped.  ``points``: the
+    (alpha, y) pairs to check instead (e.g. ``path.points``: y of lazy branches interpolated
+    between the branch's end points)."""
+    if points is None:
+        points = path.iter_points(batch, indices)
+    return max((verify(system, y, alpha, solver=solver).worst() for alpha, y in points), default=0.0)
 
 
 def path_report(path) -> dict:

@@ -27,12 +27,10 @@ def bench(tmp_path_factory):
 def test_bench_part_a_fields_and_agreement(bench):
     data, stdout = bench
     assert "Part A" in stdout and "Part B" in stdout
-    if DEMOS not in sys.path:
-        sys.path.insert(0, DEMOS)
-    import main as demo_main  # the demo's constants (the lead tunes them)
+    from cfcontact.demo_models import DEMO_FRICTIONS  # the demo's constants (the lead tunes them)
 
     rows = data["part_a"]
-    assert [(r["case"], r["friction"]) for r in rows] == [(c, F) for c in ("demo", "blocks") for F in demo_main.DEMO_FRICTIONS]
+    assert [(r["case"], r["friction"]) for r in rows] == [(c, F) for c in ("demo", "blocks") for F in DEMO_FRICTIONS]
     for r in rows:
         for key in ("n", "m", "speedup", "same_set_changes", "max_alpha_difference", "alphas_within_h_min", "h_min"):
             assert key in r, key
