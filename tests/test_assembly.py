@@ -316,6 +316,7 @@ def test_rigid_foundation():
         np.testing.assert_array_equal(N[i], expected)
 
 
+@pytest.mark.slow
 def test_msh_file_matches_model(tmp_path):
     path = tmp_path / "blocks.msh"
     subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks", str(path),

@@ -24,6 +24,7 @@ def bench(tmp_path_factory):
         return json.load(fh), proc.stdout
 
 
+@pytest.mark.slow
 def test_bench_part_a_fields_and_agreement(bench):
     data, stdout = bench
     assert "Part A" in stdout and "Part B" in stdout
@@ -57,6 +58,7 @@ def test_bench_part_a_fields_and_agreement(bench):
         assert r["speedup_median"] == pytest.approx(r["seed"]["median_wall_time"] / r["exact"]["median_wall_time"])
 
 
+@pytest.mark.slow
 def test_bench_part_b_fields(bench):
     data, _ = bench
     rows = data["part_b"]
@@ -71,6 +73,7 @@ def test_bench_part_b_fields(bench):
         assert r["condensation"] in ("schur", "solves", "forward")
 
 
+@pytest.mark.slow
 def test_bench_wrapper_and_bad_options(tmp_path):
     env = dict(os.environ)
     env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")

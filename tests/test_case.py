@@ -31,6 +31,7 @@ def test_docs_hold_the_generated_reference():
     assert "```toml\n" + case.reference_text() + "```\n" in docs, "docs/cli.md: rerun the reference (cfcontact schema)"
 
 
+@pytest.mark.slow
 def test_schema_command_prints_the_reference():
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.run([sys.executable, "-m", "cfcontact", "schema"], capture_output=True, text=True, env=env,

@@ -97,6 +97,7 @@ def small_run(tmp_path_factory):
 
 
 # ------------------------------------------------------------------ run
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["two_blocks", "inclined", "user_msh"])
 def test_example_cases_run(cases, name):
     case = str(cases / f"{name}.toml")
@@ -117,6 +118,7 @@ def test_example_cases_run(cases, name):
     assert path.geometry is not None and len(path.transitions) == len(summary["transitions"])
 
 
+@pytest.mark.slow
 def test_example_case_via_python_m(cases):
     """python -m cfcontact run, in a subprocess (the foundation example)."""
     case = str(cases / "foundation.toml")
@@ -133,6 +135,7 @@ def test_example_case_via_python_m(cases):
     assert proc.returncode == 0 and "transitions" in proc.stdout
 
 
+@pytest.mark.slow
 def test_run_outputs_pdf_and_animation(tmp_path):
     case = _write(tmp_path, SMALL.replace("[output]", '[output]\nplot_formats = ["png", "pdf"]\n'
                                           'render_animation = true\nanimation_frames = 4\n'
@@ -144,6 +147,7 @@ def test_run_outputs_pdf_and_animation(tmp_path):
     _assert_picture(str(res / "path.png"))
 
 
+@pytest.mark.slow
 def test_run_refuses_existing_output_then_force(small_run, capsys):
     case, out = small_run
     before = os.path.getmtime(os.path.join(out, "summary.json"))
@@ -154,6 +158,7 @@ def test_run_refuses_existing_output_then_force(small_run, capsys):
     assert not os.path.exists(out + ".partial") and not os.path.exists(out + ".old")
 
 
+@pytest.mark.slow
 def test_quiet_prints_nothing_verbose_shows_progress(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "--quiet"]) == 0
@@ -211,6 +216,7 @@ def test_bad_input_exit_2_one_message_no_output(tmp_path, capsys, label, text, w
     assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # no output folder, no .partial
 
 
+@pytest.mark.slow
 def test_bad_input_msh_tag_names_valid_groups(cases, tmp_path, capsys):
     shutil.copy(cases / MSH_NAME, tmp_path / MSH_NAME)
     case = _write(tmp_path, f'[geometry]\nkind = "msh"\nfile = "{MSH_NAME}"\n[loads]\nclamp = ["left1", "left2"]\n'
@@ -244,6 +250,7 @@ def test_info(small_run, capsys):
     assert len(rep["transitions"]) == json.load(open(os.path.join(out, "summary.json")))["summary"]["transitions"]
 
 
+@pytest.mark.slow
 def test_plot(small_run, tmp_path):
     _, out = small_run
     png = str(tmp_path / "p.png")
@@ -259,6 +266,7 @@ def test_plot(small_run, tmp_path):
     assert cli.main(["plot", out, "-o", str(tmp_path / "p.jpg")]) == 2
 
 
+@pytest.mark.slow
 def test_render(small_run, tmp_path, capsys):
     _, out = small_run
     one = str(tmp_path / "one.png")
@@ -302,16 +310,19 @@ def test_stop_after_transitions_and_resume(tmp_path, small_run):
     assert len(partial.transitions) == 3
 
 
+@pytest.mark.slow
 def test_stop_at_alpha_and_resume(tmp_path, small_run):
     partial = _resume_equals(tmp_path, small_run, ["--stop-at-alpha", "0.6"])
     assert partial.alphas[-1] >= 0.6 and partial.alphas[-2] < 0.6
 
 
+@pytest.mark.slow
 def test_time_limit_and_resume(tmp_path, small_run):
     partial = _resume_equals(tmp_path, small_run, ["--time-limit", "1e-6"])
     assert len(partial.alphas) == 1  # stopped at the start point
 
 
+@pytest.mark.slow
 def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
     on_point = run.Runner.on_point
 
@@ -331,6 +342,7 @@ def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
         os.path.join(small_run[1], "path")))
 
 
+@pytest.mark.slow
 def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkeypatch):
     saves = []
     save = run.save_checkpoint
@@ -343,6 +355,7 @@ def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkey
     assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
 
 
+@pytest.mark.slow
 def test_resume_checks(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q", "--resume"]) == 2

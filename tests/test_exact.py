@@ -291,6 +291,7 @@ def test_exact_with_condensed_backend_one_factorization():
 MPI_SCRIPT = os.path.join(HERE, "mpi_condensed.py")
 
 
+@pytest.mark.mpi
 def test_condensed_and_exact_under_mpi(run_mpi, tmp_path):
     out = tmp_path / "mpi.json"
     run_mpi(2, MPI_SCRIPT, str(out), timeout=300)

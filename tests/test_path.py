@@ -142,7 +142,7 @@ def test_bad_options_and_ranges():
         cfcontact.SolutionPath.load("/nonexistent-dir")
 
 
-@pytest.mark.parametrize("m,seed", [(3, 3), (3, 131), (5, 43), (5, 270)])
+@pytest.mark.parametrize("m,seed", [(3, 3), (3, 131), pytest.param(5, 43, marks=pytest.mark.slow), (5, 270)])
 def test_start_point_when_ssnm_from_zero_fails(m, seed):
     """At F = 30 SSNM from 0 cycles on these small random systems; the start cascade (from the
     frictionless solution, from the open solution, other rho) finds a solution of (1)-(3) with the

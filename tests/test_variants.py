@@ -130,6 +130,7 @@ def test_arc_frictionless_against_dual_qp(arc_model):
     assert saw_active and saw_open
 
 
+@pytest.mark.slow
 def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
     msh = tmp_path / "arc.msh"
     proc = subprocess.run([sys.executable, "-m", "cfcontact.meshes.arc_on_block", str(msh),
@@ -146,6 +147,7 @@ def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
 
 
 # ------------------------------------------------------------------ arc on block: command line
+@pytest.mark.slow
 def test_arc_example_case_runs(tmp_path):
     case = _copy_case(tmp_path, "arc.toml")
     assert cli.main(["run", case, "-q"]) == 0
@@ -190,6 +192,7 @@ def test_arc_case_tags_and_default_clamps(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ folds example
+@pytest.mark.slow
 def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
     case = _copy_case(tmp_path, "folds.toml")
     assert cli.main(["run", case, "-q"]) == 0
@@ -207,6 +210,7 @@ def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ README pictures
+@pytest.mark.slow
 def test_pictures_script_renders_a_variant(tmp_path):
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "arc",
                            "-o", str(tmp_path), "--window-size", "600", "360"],
@@ -227,6 +231,7 @@ def test_readme_pictures_present_and_small():
         assert f"docs/img/{v}.png" in readme, v
 
 
+@pytest.mark.slow
 def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
     """demos/cases/soft_layer.toml builds the main demo's system at F = 0.6 (same loads, bit for
     bit up to assembly order) and its path has two folds and three solutions."""
