@@ -17,6 +17,7 @@ Nothing here imports dolfinx or PETSc at import time.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -336,7 +337,7 @@ def _check_section(name, table, keys, label=None):
         if key in table:
             out[key] = _check_value(spec.kind, table[key], f"{label} {key}")
         elif spec.default is not None:
-            out[key] = spec.default
+            out[key] = copy.deepcopy(spec.default)  # (a list default must not be shared with the schema)
     return out
 
 

@@ -536,7 +536,9 @@ def _resume(system, span: AlphaSpan, options: PathOptions, solver, resume, callb
     if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
             or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
         raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
-    options = PathOptions.with_overrides(options, tie_rtol=path.options.get("tie_rtol", TIE_RTOL))  # the path's
+    tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
+    if tie_rtol != options.tie_rtol:
+        options = PathOptions.with_overrides(options, tie_rtol=tie_rtol)
     ctx = _prepare(system, span, options, solver, callback)
     ctx.visited = visited
     stats0 = ctx.solver.stats.as_dict()

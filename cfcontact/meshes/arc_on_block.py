@@ -169,15 +169,7 @@ def _main(argv=None):
                                   args.ny2, args.cell)
     except ValueError as exc:
         ap.error(str(exc))
-    gmsh.initialize([], False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("arc_on_block")
-        build(**params)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.write(args.output)
-    finally:
-        gmsh.finalize()
+    common.write_msh(args.output, "arc_on_block", build, **params)
     return 0
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import operator
+import os
 
 from cfcontact.errors import GeometryError, InputError  # noqa: F401  (GeometryError: for the scripts)
 
@@ -100,3 +101,19 @@ def add_physical_groups(gmsh, groups):
         gmsh.model.setPhysicalName(dim, number, name)
         created[name] = (dim, number)
     return created
+
+
+def write_msh(filename, model_name, build, **params):
+    """Build a model (``build(**params)``, a script's builder) in a gmsh session of its own and write
+    it to ``filename`` (MSH 4.1): what the scripts do when they run as programs."""
+    import gmsh
+
+    gmsh.initialize([], False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(model_name)
+        build(**params)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(os.fspath(filename))
+    finally:
+        gmsh.finalize()

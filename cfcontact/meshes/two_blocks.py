@@ -153,15 +153,7 @@ def _main(argv=None):
                                   nx2=args.nx2, ny2=args.ny2, height2=args.height2)
     except ValueError as exc:
         ap.error(str(exc))
-    gmsh.initialize([], False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("two_blocks")
-        build(foundation=args.foundation, **params)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.write(args.output)
-    finally:
-        gmsh.finalize()
+    common.write_msh(args.output, "two_blocks", build, foundation=args.foundation, **params)
     return 0
 
 
