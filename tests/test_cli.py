@@ -528,3 +528,17 @@ def test_windowed_tractions_in_a_case_file(tmp_path):
     for a, b in zip(system.loads_numpy(), ref.loads_numpy()):
         assert np.abs(a).max() > 0 and np.array_equal(a, b)
     assert system.info["tractions1"]["top1=12"][1] == {"value": [2.0e5, -3.0e5], "x": [1.5, 2.5]}
+
+
+def test_seed_periodic_checkpoints_do_not_restart_the_run(tmp_path, monkeypatch):
+    """With the seed method a periodic checkpoint is a save: one stepper traces the whole path."""
+    from cfcontact import seed
+
+    made, saves = [], []
+    init, save = seed.SeedStepper.__init__, run.save_checkpoint
+    monkeypatch.setattr(seed.SeedStepper, "__init__", lambda self, *a, **k: made.append(1) or init(self, *a, **k))
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    case = _write(tmp_path, SMALL.replace("[output]", "[output]\nplot = false\nrender_panel = false"))
+    assert cli.main(["run", case, "-q", "--checkpoint-every", "0.02"]) == 0
+    assert made == [1] and saves and set(saves) == {"checkpoint"}
+    assert SolutionPath.load(str(tmp_path / "case_out" / "path")).status == "completed"
