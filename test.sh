@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Run the test suite: installs what is missing (scripts/install.sh), then pytest.
-#   ./test.sh                 all tests
-#   ./test.sh -m "not slow"   pytest options and paths pass through
+#   ./test.sh                 all tests (what CI runs)
+#   ./test.sh --quick         the quick loop: -m "not slow and not mpi" (under a minute)
+#   ./test.sh -m "not slow"   pytest options and paths pass through (also after --quick)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
 scripts/install.sh
@@ -17,4 +18,9 @@ export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
 if [ -z "${DISPLAY:-}" ] && ! command -v Xvfb >/dev/null; then
     echo "test.sh: warning: no DISPLAY and no Xvfb: render tests will fail" >&2
 fi
-exec .venv/bin/python -m pytest -q tests "$@"
+QUICK=()
+if [ "${1:-}" = "--quick" ]; then
+    shift
+    QUICK=(-m "not slow and not mpi")
+fi
+exec .venv/bin/python -m pytest -q tests "${QUICK[@]}" "$@"

@@ -44,6 +44,7 @@ import ufl
 
 from cfcontact import compat, linalg, pairing as pairing_mod
 from cfcontact.errors import GeometryError, InputError, PairingWarning
+from cfcontact.material import check_material, lame_parameters
 from cfcontact.system import ContactGeometry, ContactSystem, default_rho
 
 BODY1, BODY2 = 1, 2
@@ -56,49 +57,6 @@ __all__ = ["assemble_contact_system", "check_material", "full_stiffness", "lame_
 
 
 # ======================================================================= input
-def lame_parameters(E, nu, plane="strain"):
-    """Lamé parameters (lambda, mu) of the 2-D model (plane strain or plane stress)."""
-    try:
-        E = float(E)
-        nu = float(nu)
-    except (TypeError, ValueError):
-        raise InputError(f"E and nu must be numbers, got E={E!r}, nu={nu!r}") from None
-    if not (np.isfinite(E) and E > 0):
-        raise InputError(f"Young's modulus E must be a finite positive number, got {E!r}")
-    if not (np.isfinite(nu) and -1.0 < nu < 0.5):
-        raise InputError(f"Poisson's ratio nu must lie in (-1, 0.5), got {nu!r}")
-    lam = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-    mu = E / (2.0 * (1.0 + nu))
-    if plane == "strain":
-        return lam, mu
-    if plane == "stress":
-        return 2.0 * lam * mu / (lam + 2.0 * mu), mu
-    raise InputError(f"plane must be 'strain' or 'stress', got {plane!r}")
-
-
-def _material_items(value, what):
-    """[(body spec or None, value)] of a material parameter: a number or {body: number}."""
-    if isinstance(value, Mapping):
-        if not value:
-            raise InputError(f"{what} is an empty dict; give a number or {{body name/number: value}}")
-        return list(value.items())
-    return [(None, value)]
-
-
-def check_material(E, nu, plane="strain"):
-    """Validate E and nu (numbers or dicts {body: number}) and ``plane`` before any collective work."""
-    lame_parameters(1.0, 0.0, plane)  # the plane
-    for name, value in (("E", E), ("nu", nu)):
-        for body, v in _material_items(value, name):
-            where = "" if body is None else f" (in {name}[{body!r}])"
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                raise InputError(f"{name} must be a number, got {v!r}{where}")
-            try:  # each value against a valid partner, so the message names only this one
-                lame_parameters(v, 0.0, plane) if name == "E" else lame_parameters(1.0, v, plane)
-            except InputError as exc:
-                raise InputError(f"{exc}{where}") from None
-
-
 def material_per_body(E, nu, plane, groups, bodies):
     """{body number: (lambda, mu)} for the given bodies; E, nu numbers or {body name/number: value}.
 

@@ -1,7 +1,7 @@
 """Benchmarks of cfcontact's path following (see docs/bench.md for measured numbers).
 
-Part A -- seed vs exact on the main demo (``demos/main.py``: ``build(F)`` for every F in
-``DEMO_FRICTIONS``) and on the two steel blocks of :data:`BLOCKS_MODEL` (a longer path: every
+Part A -- seed vs exact on the main demo (:func:`cfcontact.demo_models.build_demo` for every F in
+``DEMO_FRICTIONS``) and on the two steel blocks of :data:`~cfcontact.demo_models.BLOCKS_MODEL` (a longer path: every
 contact node works).  The seed method runs with the default PETSc backend
 (:class:`cfcontact.DirNeuSolver`: one factorization of J(Z) per branch), the exact method with
 :class:`cfcontact.condensed.CondensedSolver` (K factored once, a dense system of size <= 2m per branch).
@@ -18,7 +18,7 @@ shared machine only ever adds time, and adds relatively more to a 15 ms run than
 
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
 nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two steel blocks
-(:func:`build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
+(:func:`~cfcontact.demo_models.build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
 ``ru_maxrss`` of that process) and reports the time split
 
     assembly (two_blocks) | factorization of K (PETSc log: MatLUFactorSym + MatLUFactorNum, or the
@@ -52,59 +52,18 @@ import time
 
 import numpy as np
 
+from cfcontact import demo_models as dm
+from cfcontact.demo_models import BLOCKS_F1, BLOCKS_F2, BLOCKS_MODEL, build_blocks
 from cfcontact.errors import InputError
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-DEMOS = os.path.join(ROOT, "demos")
+from cfcontact.report import worst_residual
 
 SIZES = (1e4, 1.2e5, 1e6)
 QUICK_SIZES = (2e3, 1e4)
 LARGE = 5e5  # --skip-large drops sizes above this
 MAX_RUNS = 200  # Part A: most runs of one method (--min-time)
 
-#: The second model of Part A and the model of Part B: two steel blocks (body 2 half as high as
-#: body 1, quadrilaterals, clamped on their left edges; n = 1320, m = 30 on 30 x 10 cells per
-#: block) with the loads of the earlier main demo.  All its contact nodes work along the path
-#: (F = 30: 59 transitions, 4 folds, 5 solutions), where the main demo's path moves a few nodes
-#: near the ends of the interface (5 to 10 transitions): the speed-up of the exact method grows
-#: with the number of transitions, since its set-up (one factorization of K and S) is paid once.
-BLOCKS_MODEL = dict(height=1.0, height2=0.5, length=3.0)
-BLOCKS_F1 = {"top1": (-5.734e7, 3.658e6), "right1": (3.910e7, -8.724e7), "bottom2": (1.877e8, -1.500e6)}
-BLOCKS_F2 = {"top1": (1.0e8, 0.0), "right2": (-5.807e7, 1.510e3), "bottom2": (-1.045e8, 1.450e8)}
-
-
-def build_blocks(friction, nx=30, ny=10, quick=False):
-    """The two steel blocks (BLOCKS_MODEL, BLOCKS_F1, BLOCKS_F2); ``quick``: 12 x 4 cells per block."""
-    import cfcontact
-
-    if quick:
-        nx, ny = 12, 4
-    return cfcontact.two_blocks(nx=nx, ny=ny, friction=friction, tractions1=BLOCKS_F1, tractions2=BLOCKS_F2,
-                                **BLOCKS_MODEL)
-
-
-def demo():
-    """The main demo's module ``demos/main.py`` (its constants are imported, never copied)."""
-    if not os.path.isfile(os.path.join(DEMOS, "main.py")):
-        raise InputError(f"the benchmark needs the main demo {os.path.join(DEMOS, 'main.py')} (a source checkout)")
-    if DEMOS not in sys.path:
-        sys.path.insert(0, DEMOS)
-    import main as demo_main
-
-    return demo_main
-
-
 #: Part B verifies every stored point up to this many points, else this many evenly spaced ones.
 VERIFY_MAX_POINTS = 400
-
-
-def worst_residual(system, path, solver=None, batch=128, indices=None) -> float:
-    """Worst relative violation of (1)-(3) over the stored points of a path (or the points
-    ``indices``); lazy displacements are formed in batches and dropped."""
-    import cfcontact
-
-    return max((cfcontact.verify(system, y, alpha, solver=solver).worst()
-                for alpha, y in path.iter_points(batch, indices)), default=0.0)
 
 
 def peak_rss_gib() -> float:
@@ -180,8 +139,7 @@ def part_a(quick=False, frictions=None, log=print, repeat=1, min_time=0.0, cases
     times and for at least ``min_time`` seconds (fresh solver each time); its time is the fastest
     run (the paths are identical; the noise of a shared machine only adds time), its median is
     reported too."""
-    dm = demo()
-    builders = {"demo": dm.build, "blocks": lambda F: build_blocks(F, quick=quick)}
+    builders = {"demo": dm.build_demo, "blocks": lambda F: build_blocks(F, quick=quick)}
     unknown = [c for c in cases if c not in builders]
     if unknown:
         raise InputError(f"unknown Part A case(s) {unknown}; valid: {sorted(builders)}")
@@ -194,7 +152,6 @@ def _part_a_case(case, build, frictions, log, repeat, min_time) -> list:
     from cfcontact.condensed import CondensedSolver
     from cfcontact.ssnm import DirNeuSolver
 
-    dm = demo()
     out = []
     for F in frictions:
         t0 = time.perf_counter()
@@ -281,7 +238,6 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
     import cfcontact
     from cfcontact.condensed import CondensedSolver
 
-    dm = demo()
     res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly"}
 
     def dump():  # partial results survive a crash / kill
@@ -354,11 +310,12 @@ def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
     for o in petsc_options:
         cmd += ["--petsc-option", o]
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    env = dict(os.environ)  # the worker imports the cfcontact this process runs, installed or not
+    package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = package_parent + os.pathsep + env.get("PYTHONPATH", "")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
         out, err, rc = proc.stdout, proc.stderr, proc.returncode
     except subprocess.TimeoutExpired as exc:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
@@ -429,7 +386,6 @@ def run(args, argv_text="") -> int:
     min_time = min_time if min_time is not None else (0.0 if args.quick else 1.0)
     if not (0 <= min_time < math.inf):
         raise InputError(f"--min-time must be a number of seconds >= 0, got {min_time}")
-    dm = demo()
     result = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
                           "loadavg_start": os.getloadavg()},
               "demo": {"model": dm.DEMO_MODEL, "f1": dm.DEMO_F1, "f2": dm.DEMO_F2,

@@ -30,7 +30,6 @@ Cost: O(n m) memory for K^-1 B^T; it pays off for small m (tens to a few hundred
 
 from __future__ import annotations
 
-import ctypes
 import logging
 import time
 from collections import OrderedDict
@@ -43,6 +42,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from cfcontact import linalg
+from cfcontact.compat_petsc import factor_schur_complement, factor_set_schur_is
 from cfcontact.errors import InputError, SingularSystemError
 from cfcontact.ssnm import InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_key
 from cfcontact.system import ContactSystem
@@ -72,34 +72,6 @@ _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less o
 # per-node state codes (ssnm.STATE_NAMES order) and lam_t / (F lam_n) of a slipping node by code
 _OPEN, _STICK, _SLIP_P, _SLIP_M = 0, 1, 2, 3
 _SLIP_SIGN = np.array([0.0, 0.0, 1.0, -1.0])
-_LIB = []
-
-
-def _petsc_lib():
-    """The PETSc shared library petsc4py uses (ctypes), with the few signatures needed here."""
-    if not _LIB:
-        path = None
-        with open("/proc/self/maps") as fh:
-            for line in fh:
-                name = line.split()[-1]
-                if "/libpetsc" in name and ".so" in name:
-                    path = name
-                    break
-        if path is None:
-            raise RuntimeError("libpetsc is not among the loaded libraries")
-        lib = ctypes.CDLL(path)
-        vp = ctypes.c_void_p
-        lib.MatFactorSetSchurIS.argtypes = [vp, vp]
-        lib.MatFactorGetSchurComplement.argtypes = [vp, ctypes.POINTER(vp), ctypes.POINTER(ctypes.c_int)]
-        lib.MatFactorRestoreSchurComplement.argtypes = [vp, ctypes.POINTER(vp), ctypes.c_int]
-        lib.MatDenseGetLDA.argtypes = [vp, ctypes.POINTER(_PetscIntC)]
-        lib.MatDenseGetArrayRead.argtypes = [vp, ctypes.POINTER(ctypes.POINTER(ctypes.c_double))]
-        lib.MatDenseRestoreArrayRead.argtypes = [vp, ctypes.POINTER(ctypes.POINTER(ctypes.c_double))]
-        _LIB.append(lib)
-    return _LIB[0]
-
-
-_PetscIntC = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
 
 
 @dataclass
@@ -222,8 +194,8 @@ class CondensedSolver:
     # ------------------------------------------------------- Schur complement
     def _request_schur(self, fm, required=False):
         """Ask MUMPS for the Schur complement of K on the contact DOFs (serial only: PETSc's MUMPS
-        interface does not support parallel Schur complements).  petsc4py 3.18 does not wrap
-        MatFactorSetSchurIS, so it is called through ctypes; any failure falls back to solves."""
+        interface does not support parallel Schur complements; :mod:`cfcontact.compat_petsc`
+        makes the call petsc4py does not wrap); any failure falls back to solves."""
         B = sp.csc_matrix(self.B)
         dofs = np.flatnonzero(np.diff(B.indptr) > 0)
         if self.m == 0 or dofs.size == 0 or dofs.size >= self.n:
@@ -231,12 +203,8 @@ class CondensedSolver:
                 raise InputError("schur=True needs contact DOFs and at least one other DOF")
             return
         try:
-            lib = _petsc_lib()
-            is_ = PETSc.IS().createGeneral(dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-            err = lib.MatFactorSetSchurIS(ctypes.c_void_p(fm.handle), ctypes.c_void_p(is_.handle))
-            if err:
-                raise RuntimeError(f"MatFactorSetSchurIS returned {err}")
-        except Exception as exc:  # no usable libpetsc: solves instead
+            is_ = factor_set_schur_is(fm, dofs)
+        except (RuntimeError, PETSc.Error) as exc:  # no Schur complement from this PETSc: solves instead
             if required:
                 raise InputError(f"schur=True: cannot request the Schur complement from MUMPS ({exc})") from exc
             log.info("MUMPS Schur complement unavailable (%s); S is formed by solves", exc)
@@ -247,25 +215,10 @@ class CondensedSolver:
         """S = B_c S_c^-1 B_c^T with S_c the Schur complement of K on the contact DOFs c:
         (K^-1)_cc = S_c^-1.  Read right after the factorization (PETSc factors S_c in place at
         the first solve)."""
-        lib = _petsc_lib()
-        vp = ctypes.c_void_p
-        fm = self.ksp.getPC().getFactorMatrix()
-        Smat, status = vp(), ctypes.c_int()
-        k = self._schur_dofs.size
-        if lib.MatFactorGetSchurComplement(vp(fm.handle), ctypes.byref(Smat), ctypes.byref(status)) or status.value:
-            log.info("MatFactorGetSchurComplement failed (status %s); S is formed by solves", status.value)
+        Sc = factor_schur_complement(self.ksp.getPC().getFactorMatrix(), self._schur_dofs.size)
+        if Sc is None:
+            log.info("MatFactorGetSchurComplement gave no Schur complement; S is formed by solves")
             return None
-        try:
-            lda = _PetscIntC()
-            arr = ctypes.POINTER(ctypes.c_double)()
-            if lib.MatDenseGetLDA(Smat, ctypes.byref(lda)) or lib.MatDenseGetArrayRead(Smat, ctypes.byref(arr)):
-                return None
-            try:
-                Sc = np.ctypeslib.as_array(arr, shape=(k, int(lda.value)))[:, :k].T.copy()  # column-major
-            finally:
-                lib.MatDenseRestoreArrayRead(Smat, ctypes.byref(arr))
-        finally:
-            lib.MatFactorRestoreSchurComplement(vp(fm.handle), ctypes.byref(Smat), status.value)
         if not np.all(np.isfinite(Sc)):
             return None
         Sc = 0.5 * (Sc + Sc.T)

@@ -19,10 +19,11 @@ combinations, some seconds).
 from __future__ import annotations
 
 import contextlib
-import ctypes
+import functools
 import logging
 
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from cfcontact.errors import EnumerationTooLarge, InputError
 from cfcontact.ssnm import InactiveSets, Solution, verify
@@ -120,40 +121,17 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
     return found
 
 
-_BLAS = []
-
-
-def _openblas():
-    """The loaded OpenBLAS library (ctypes), or None."""
-    if not _BLAS:
-        lib = None
-        try:
-            with open("/proc/self/maps") as fh:
-                paths = {line.split()[-1] for line in fh if "openblas" in line and line.split()[-1].startswith("/")}
-            for path in sorted(paths):
-                cand = ctypes.CDLL(path)
-                if hasattr(cand, "openblas_set_num_threads") and hasattr(cand, "openblas_get_num_threads"):
-                    lib = cand
-                    break
-        except OSError:
-            lib = None
-        _BLAS.append(lib)
-    return _BLAS[0]
+@functools.lru_cache(maxsize=None)
+def _blas_controller():
+    """threadpoolctl's view of the BLAS libraries loaded now (found once, when first needed)."""
+    return ThreadpoolController()
 
 
 @contextlib.contextmanager
 def single_threaded_blas():
-    """Run OpenBLAS single-threaded inside the block (batched tiny solves are much faster so)."""
-    lib = _openblas()
-    if lib is None:
+    """Run BLAS single-threaded inside the block (batched tiny solves are much faster so)."""
+    with _blas_controller().limit(limits=1, user_api="blas"):
         yield
-        return
-    old = lib.openblas_get_num_threads()
-    lib.openblas_set_num_threads(1)
-    try:
-        yield
-    finally:
-        lib.openblas_set_num_threads(old)
 
 
 def _batched_solve(M, r):

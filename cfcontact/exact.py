@@ -45,26 +45,17 @@ from typing import Optional
 import numpy as np
 
 from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
-from cfcontact.path import (
-    SET_NAMES,
-    PathEvent,
-    PathOptions,
-    PathPoint,
-    SolutionPath,
-    Transition,
-    _alpha_range,
-    branch_endpoints,
-    resume_parts,
-    start_point,
-)
+from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
+from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
+from cfcontact.start import branch_endpoints, check_request, resume_parts, start_point
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
 
-#: Default relative tolerance deciding that an indicator "vanishes" (relative to the largest
-#: indicator magnitude of the branch) or that a slope is zero.
-TIE_RTOL = 1e-10
+#: TIE_RTOL (from :mod:`cfcontact.options`, the default of ``PathOptions.tie_rtol``): the relative
+#: tolerance deciding that an indicator "vanishes" (relative to the largest indicator magnitude of
+#: the branch) or that a slope is zero.
 #: Constraints whose roots lie further apart than this (times 1 + |alpha|) are separate
 #: transitions even when their values at a transition point are within the tolerance.
 ALPHA_WINDOW = 1e-9
@@ -183,8 +174,8 @@ class _Line:
 
 
 class _Context:
-    def __init__(self, system, solver, opts, lo, hi, rtol):
-        self.system, self.solver, self.opts = system, solver, opts
+    def __init__(self, system, solver, opts, lo, hi, rtol, callback=None):
+        self.system, self.solver, self.opts, self.callback = system, solver, opts, callback
         self.lo, self.hi, self.rtol = lo, hi, rtol
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
@@ -435,10 +426,10 @@ def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_e
         return "stopped by callback"
 
     def emit(idx):
-        if opts.callback is None:
+        if ctx.callback is None:
             return False
         sol = Solution.from_y(system, path._ys[idx], path._alphas[idx], sets=ln.sets)
-        return bool(opts.callback(PathPoint(idx, path._alphas[idx], branch.index, sol, path)))
+        return bool(ctx.callback(PathPoint(idx, path._alphas[idx], branch.index, sol, path)))
 
     if resume_branch is None:
         idx = path.add_point(branch, alpha, y_enter)
@@ -531,10 +522,10 @@ def _resume_state(ctx: _Context, branch, ln: _Line, s: int, alpha: float, n_tran
             "visited": [[k.hex(), int(sg), [float(a) for a in al]] for (k, sg), al in ctx.visited.items()]}
 
 
-def _resume(system, alpha_start, alpha_end, options, solver, resume) -> SolutionPath:
+def _resume(system, span: AlphaSpan, options: PathOptions, solver, resume, callback=None) -> SolutionPath:
     """Continue an exact run stopped by its callback (see :func:`trace_exact`)."""
     t0 = time.perf_counter()
-    path, state = resume_parts(system, alpha_start, alpha_end, resume, "exact")
+    path, state = resume_parts(system, span.start, span.end, resume, "exact")
     try:
         branch = path.branches[int(state["branch"])]
         codes = np.asarray(state["codes"], dtype=np.int8)
@@ -545,7 +536,10 @@ def _resume(system, alpha_start, alpha_end, options, solver, resume) -> Solution
     if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
             or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
         raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
-    ctx, opts = _prepare(system, alpha_start, alpha_end, options, solver, path.options.get("tie_rtol", TIE_RTOL))
+    tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
+    if tie_rtol != options.tie_rtol:
+        options = PathOptions.with_overrides(options, tie_rtol=tie_rtol)
+    ctx = _prepare(system, span, options, solver, callback)
     ctx.visited = visited
     stats0 = ctx.solver.stats.as_dict()
     before = {k: v for k, v in path.stats.items() if isinstance(v, (int, float))}
@@ -556,38 +550,30 @@ def _resume(system, alpha_start, alpha_end, options, solver, resume) -> Solution
     return _finish(path, ctx.solver, stats0, t0, status, before)
 
 
-def _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol):
-    if not isinstance(system, ContactSystem):
-        raise InputError(f"system must be a ContactSystem, got {type(system).__name__}")
-    if not (np.isfinite(alpha_start) and np.isfinite(alpha_end)) or alpha_start == alpha_end:
-        raise InputError(f"alpha range is empty: alpha_start={alpha_start}, alpha_end={alpha_end} "
-                         f"(need two different finite numbers)")
-    if not (0 < tie_rtol < 1e-2):
-        raise InputError(f"tie_rtol must be in (0, 1e-2), got {tie_rtol!r}")
-    opts = options or PathOptions()
-    opts.validate()
-    lo, hi = _alpha_range(opts, alpha_start, alpha_end)
+def _prepare(system, span: AlphaSpan, opts: PathOptions, solver, callback=None) -> _Context:
+    """The run's context (span and options validated by the caller, once)."""
     solver = solver or get_solver(system)
-    ctx = _Context(system, solver, opts, lo, hi, float(tie_rtol))
+    ctx = _Context(system, solver, opts, span.lo, span.hi, float(opts.tie_rtol), callback)
     ctx.prepare_loads()
-    return ctx, opts
+    return ctx
 
 
 def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, y0=None,
-                options: Optional[PathOptions] = None, solver=None, tie_rtol: float = TIE_RTOL,
+                options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None,
                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
-                resume=None) -> SolutionPath:
+                resume=None, callback=None) -> SolutionPath:
     """Exact piecewise-affine continuation of the solution path from alpha_start towards alpha_end.
 
     Parameters
     ----------
     y0 : start solution or guess for SSNM at alpha_start (ignored with ``start_sets``)
-    options : PathOptions (alpha_min/alpha_max, max_transitions, callback, tol/max_iter of the
+    options : PathOptions (alpha_min/alpha_max, max_transitions, tie_rtol, tol/max_iter of the
         start SSNM are used; the step-size options are not)
     solver : DirNeu backend (default: the system's PETSc :class:`~cfcontact.ssnm.DirNeuSolver`;
         :class:`~cfcontact.condensed.CondensedSolver` for one factorization of K in total)
     tie_rtol : relative tolerance (on the largest indicator magnitude) under which an indicator
-        value counts as zero at a transition point (ties) or a slope as zero
+        value counts as zero at a transition point (ties) or a slope as zero (overrides
+        ``options.tie_rtol``)
     start_sets, orientation : start on the branch of these sets (y = DirNeu(start_sets, f(alpha_start)),
         which must be consistent there) with this orientation (default: towards alpha_end)
     resume : continue a run stopped by its callback instead of starting anew: a dict
@@ -598,21 +584,35 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         path, and the result equals an uninterrupted run.  The path's ``tie_rtol`` is used;
         y0, start_sets and orientation are ignored.
 
+    callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint` (the start,
+        the entry of every branch, the end); a truthy return stops the run
+
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
     (bracket (alpha, alpha)) and every change (``Transition.changes``).  Status "completed"
     (alpha range left), "stuck" (dead end / too degenerate, see events), "cycling",
     "max_transitions" or "stopped by callback".
     """
+    overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
+    opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
+    return run_exact(system, span, opts, solver, y0=y0, start_sets=start_sets, orientation=orientation,
+                     resume=resume, callback=callback)
+
+
+def run_exact(system: ContactSystem, span: AlphaSpan, opts: PathOptions, solver=None, y0=None,
+              start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
+              resume=None, callback=None) -> SolutionPath:
+    """:func:`trace_exact` with its arguments validated (by :func:`cfcontact.start.check_request`)."""
     if resume is not None:
-        return _resume(system, alpha_start, alpha_end, options, solver, resume)
+        return _resume(system, span, opts, solver, resume, callback)
+    alpha_start, alpha_end = span.start, span.end
     t0 = time.perf_counter()
-    ctx, opts = _prepare(system, alpha_start, alpha_end, options, solver, tie_rtol)
+    ctx = _prepare(system, span, opts, solver, callback)
     solver = ctx.solver
     stats0 = solver.stats.as_dict()
     s = (1 if alpha_end > alpha_start else -1) if orientation is None else int(orientation)
     if s not in (1, -1):
         raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
-    path = SolutionPath.for_system(system, "exact", alpha_start, alpha_end, {**opts.to_dict(), "tie_rtol": tie_rtol})
+    path = SolutionPath.for_system(system, "exact", alpha_start, alpha_end, opts.to_dict())
     alpha = float(alpha_start)
     if start_sets is not None:
         if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
@@ -651,7 +651,8 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
 
 
 def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: int, alternative: int,
-                       options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None) -> dict:
+                       options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None,
+                       callback=None) -> dict:
     """Follow another branch leaving a branch point of an exact path.
 
     ``path.events[event_index]`` must be a "branch_point" event; ``alternative`` indexes its
@@ -659,7 +660,7 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     branch has ``parent`` = the branch that reached the branch point and ``origin`` = a new
     Transition).  ``path.status`` (the main run's) is unchanged; the sub-run's status and its
     branch indices are returned and stored in ``event.data["followed"][str(alternative)]``.
-    A sub-run stopped by the options' callback ends there (status "stopped by callback"):
+    A sub-run stopped by ``callback`` ends there (status "stopped by callback"):
     ``path.resume_state`` keeps the main run's state, so that resuming the path continues the
     main run, not the alternative.
     """
@@ -672,9 +673,10 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     alt = alts[alternative]
     if tie_rtol is None:
         tie_rtol = path.options.get("tie_rtol", TIE_RTOL)
-    opts = options or PathOptions(**{k: v for k, v in path.options.items() if k in PathOptions.__dataclass_fields__})
+    opts, span = check_request(system, path.alpha_start, path.alpha_end,
+                               options or PathOptions.from_dict(path.options), tie_rtol=tie_rtol)
     t0 = time.perf_counter()
-    ctx, opts = _prepare(system, path.alpha_start, path.alpha_end, opts, solver, tie_rtol)
+    ctx = _prepare(system, span, opts, solver, callback)
     stats0 = ctx.solver.stats.as_dict()
     a = float(alt["alpha"])
     sets = InactiveSets.from_dict(alt["sets"])

@@ -30,6 +30,7 @@ from typing import Iterable, Optional
 import numpy as np
 
 from cfcontact.errors import InputError
+from cfcontact.material import check_modulus, check_plane, check_poisson
 
 __all__ = ["cell_material", "cell_stress", "von_mises", "contact_state_codes", "write_xdmf", "export_path",
            "STATE_CODES", "XDMF_TOPOLOGY"]
@@ -98,18 +99,20 @@ def cell_material(geometry, material):
     missing = [k for k in ("E", "nu") if k not in material]
     if missing:
         raise InputError(f"material has no {' and no '.join(missing)} (keys {list(material)})")
-    plane = material.get("plane", "strain")
-    if plane not in ("strain", "stress"):
-        raise InputError(f"material plane must be 'strain' or 'stress', got {plane!r}")
+    try:
+        plane = check_plane(material.get("plane", "strain"))
+    except InputError as exc:
+        raise InputError(f"material {exc}") from None
     cell_body = np.asarray(geometry.cell_body).astype(int)
     E = _per_cell(material["E"], "E", cell_body)
     nu = _per_cell(material["nu"], "nu", cell_body)
-    bad = ~(np.isfinite(E) & (E > 0))
-    if bad.any():
-        raise InputError(f"material E must be finite and > 0, got {E[bad][0]!r} (body {cell_body[bad][0]})")
-    bad = ~(np.isfinite(nu) & (nu > -1.0) & (nu < 0.5))
-    if bad.any():
-        raise InputError(f"material nu must lie in (-1, 0.5), got {nu[bad][0]!r} (body {cell_body[bad][0]})")
+    for values, check in ((E, check_modulus), (nu, check_poisson)):
+        for body in np.unique(cell_body).tolist():
+            for v in np.unique(values[cell_body == body]).tolist():
+                try:
+                    check(v)
+                except InputError as exc:
+                    raise InputError(f"material: {exc} (body {body})") from None
     return E, nu, plane
 
 

@@ -7,10 +7,7 @@ geometry scripts are imported inside the functions.
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import math
-import os
-import sys
 from types import MappingProxyType
 
 from cfcontact.errors import InputError
@@ -25,24 +22,6 @@ __all__ = ["two_blocks", "arc_on_block", "cylinder_on_block", "rounded_punch", "
 DEFAULT_TRACTIONS1 = MappingProxyType({"top1": (2.0e7, -1.0e8)})
 #: Default surface tractions of the load f2: mostly shear (1e8), less pressure (2e7).
 DEFAULT_TRACTIONS2 = MappingProxyType({"top1": (1.0e8, -2.0e7)})
-
-
-def _meshes_module(name):
-    """``cfcontact.meshes.<name>``; from the source tree's ``meshes/`` when not installed."""
-    full = f"cfcontact.meshes.{name}"
-    try:
-        return importlib.import_module(full)
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("cfcontact.meshes", full):
-            raise
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "meshes", f"{name}.py")
-    if not os.path.isfile(path):
-        raise ModuleNotFoundError(f"No module named {full!r} (and no {path})", name=full)
-    spec = importlib.util.spec_from_file_location(full, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[full] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def _rotate(vec, angle):
@@ -132,7 +111,7 @@ def two_blocks(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = _meshes_module("two_blocks")
+    from cfcontact.meshes import two_blocks as geo  # imports gmsh
     params = geo.check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
     if clamp is None:
         clamp = ("left1",) if foundation else ("left1", "left2")
@@ -188,7 +167,7 @@ def arc_on_block(
     body 1 sits in it, its bottom the matching convex arc, its sides ``height`` high above the
     ends of the arc, its top flat.  Body 2 is ``height2`` (default ``height``) thick below the
     lowest point.  ``nx`` cells along the arc, ``ny`` / ``ny2`` across body 1 / body 2
-    (structured quadrilaterals or triangles, see ``meshes/arc_on_block.py``).  The contact
+    (structured quadrilaterals or triangles, see :mod:`cfcontact.meshes.arc_on_block`).  The contact
     normals are radial: they turn by ``2 * half_angle`` along the interface.
 
     The interface is **conforming** (the bodies touch along the whole arc; initial gaps are not
@@ -203,7 +182,7 @@ def arc_on_block(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = _meshes_module("arc_on_block")
+    from cfcontact.meshes import arc_on_block as geo  # imports gmsh
     params = geo.check_parameters(radius=radius, half_angle=half_angle, height=height, height2=height2,
                                   nx=nx, ny=ny, ny2=ny2, cell=cell)
     kwargs = dict(
@@ -253,7 +232,7 @@ def _build_and_assemble(geo_name, params, info, kwargs, comm):
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = _meshes_module(geo_name)
+    geo = importlib.import_module(f"cfcontact.meshes.{geo_name}")
     if comm.rank == 0:
         with compat.gmsh_model(f"cfcontact-{geo_name}") as model:
             geo.build(**params)
@@ -293,7 +272,7 @@ def cylinder_on_block(
     match_tol=1e-8,
 ):
     """A (half-)cylinder pressed on a block (Hertz contact, plane strain by default), with the
-    initial gap of the curved surface: ``meshes/cylinder_on_block.py``.
+    initial gap of the curved surface: :mod:`cfcontact.meshes.cylinder_on_block`.
 
     Body 1 is the lower half of a cylinder of radius ``radius`` (lowest point ``gap0`` above the
     block), body 2 the block ``[-width/2, width/2] x [-depth, 0]``, clamped at its bottom.  The
@@ -311,7 +290,7 @@ def cylinder_on_block(
     pressure).  Tags: ``contact1, top1, right1, left1, sym1, contact2, top2, bottom2, right2,
     left2, sym2``.
     """
-    geo = _meshes_module("cylinder_on_block")
+    from cfcontact.meshes import cylinder_on_block as geo
     params = geo.check_parameters(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far,
                                   growth=growth, gap0=gap0, cell=cell, half=half)
     kwargs = dict(
@@ -357,7 +336,7 @@ def rounded_punch(
     search_distance=None,
     match_tol=1e-8,
 ):
-    """A flat punch with rounded edges pressed on a block: ``meshes/rounded_punch.py``.
+    """A flat punch with rounded edges pressed on a block: :mod:`cfcontact.meshes.rounded_punch`.
 
     Body 1 is the punch ``[-half_width, half_width] x [gap0, gap0 + height]`` with its bottom
     corners rounded (radius ``edge_radius``), body 2 the block ``[-width/2, width/2] x [-depth,
@@ -368,7 +347,7 @@ def rounded_punch(
     ``sym1``, ``sym2``).  Loading as :func:`cylinder_on_block`: the punch's top is moved by
     ``(shift, -indentation)`` (default indentation from 0 to 0.002), or ``dirichlet``.
     """
-    geo = _meshes_module("rounded_punch")
+    from cfcontact.meshes import rounded_punch as geo
     params = geo.check_parameters(half_width=half_width, edge_radius=edge_radius, height=height, width=width,
                                   depth=depth, zone=zone, size=size, size_far=size_far, growth=growth, gap0=gap0,
                                   cell=cell, half=half)

@@ -224,24 +224,12 @@ def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True,
 
 
 def _multiplicity_steps(path, alpha_range=None):
-    ends = sorted({float(e) for b in path.branches for e in path.branch_extent(b) if np.isfinite(e)})
-    if alpha_range is not None:
-        lo, hi = alpha_range
-        ends = sorted({lo, hi, *[e for e in ends if lo < e < hi]})
-    edges, counts = [], []
-    for a, b in zip(ends[:-1], ends[1:]):
-        if b <= a:
-            continue
-        edges.append(a)
-        counts.append(path.multiplicity(0.5 * (a + b)))
-    if not counts:
+    """(edges, counts) of the steps of :meth:`SolutionPath.multiplicity_intervals`."""
+    intervals = path.multiplicity_intervals(alpha_range)
+    if not intervals:
         raise InputError("the path covers no α interval; nothing to plot")
-    edges.append(ends[-1])
-    edges = np.asarray(edges, dtype=float)
-    counts = np.asarray(counts, dtype=int)
-    # merge equal neighbours
-    keep = np.concatenate([[True], counts[1:] != counts[:-1]])
-    return np.concatenate([edges[:-1][keep], edges[-1:]]), counts[keep]
+    edges = np.asarray([a for a, _, _ in intervals] + [intervals[-1][1]], dtype=float)
+    return edges, np.asarray([k for _, _, k in intervals], dtype=int)
 
 
 def plot_multiplicity(path, ax=None, title: Optional[str] = None, xlabel: str = "α",

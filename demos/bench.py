@@ -5,14 +5,9 @@ Run:  .venv/bin/python demos/bench.py [--quick] [--sizes 1e4,1.2e5,1e6] [--skip-
       [--output DIR] [--part A|B|AB] [--timeout S]
 """
 
-import os
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-if ROOT not in sys.path:
-    sys.path.insert(0, ROOT)
-
-from cfcontact.bench import main  # noqa: E402
+from cfcontact.bench import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -16,18 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
 import time
 
 import cfcontact
 from cfcontact.critical import critical_friction
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-from main import DEMO_MODEL  # noqa: E402  (the main demo's model)
-
-from cfcontact.bench import BLOCKS_MODEL  # noqa: E402  (two steel blocks, the earlier demo's model)
+from cfcontact.demo_models import BLOCKS_MODEL, DEMO_MODEL  # the main demo's model; two steel blocks
 
 #: (label, two_blocks arguments).  All have n = 1320, m = 30 on the full mesh (the foundation: m = 30, n = 660).
 MODELS = [

@@ -31,51 +31,13 @@ import numpy as np
 
 import cfcontact
 from cfcontact import plotting
+from cfcontact.demo_models import DEMO_ALPHA, DEMO_FRICTIONS, build_demo
 from cfcontact.path import select_solver
+from cfcontact.report import worst_residual
 
-# The model of the demo: a steel block (E = 2.1e11 Pa, nu = 0.3) on a soft layer 0.3 thick
-# (E = 2.1e8 Pa, nu = 0, a cork-like material), 3 long, both clamped on their left edges, 30 x 10
-# cells per body, each quadrilateral split into two triangles: n = 1320, m = 30.  Why this one:
-# folds need friction above the model's critical value (demos/critical_friction.py), and the
-# two steel blocks of the earlier demo (height2 = 0.5, quadrilaterals) cannot fold below
-# F ~ 1.9, so they cannot show the seed's three solutions at F = 0.6; on a soft layer with nu = 0
-# normal and tangential contact displacements couple strongly and two neighbouring nodes
-# slipping in opposite directions fold from F ~ 0.56 on.
-STEEL = 2.1e11
-DEMO_MODEL = dict(height=1.0, height2=0.3, length=3.0, cell="triangle",
-                  E={"body1": STEEL, "body2": STEEL / 1000}, nu={"body1": 0.3, "body2": 0.0})
-
-# The load path f(alpha) = (1 - alpha) f1 + alpha f2: tractions [Pa] on the tagged edges (a
-# uniform part per edge, plus four windows of one element edge each: on top1 at x in [2.2, 2.3]
-# and [2.9, 3.0], on bottom2 at x in [2.5, 2.6] and [2.9, 3.0]) and body forces [N/m^3].  The
-# numbers come from a search: a linear program put nodes 27 and 28 into the load cone of three
-# solutions at F = 0.6, then random and local searches over the 16 load terms chose f1, f2 so
-# that the seed's predictor-corrector and the exact method give the same transitions at all three
-# F; rounded to three digits.  The outcome per F is printed by the demo and checked by
-# tests/test_demos.py.  The three-solution interval at F = 0.6 is narrow (2.7e-3 in alpha,
-# around alpha = 0.792): changing a load term by 0.1 % can remove it.
-DEMO_F1 = {"top1": [(-1.48e4, 9.20e3), {"value": (0.0, -3.49e5), "x": (2.2, 2.3)},
-                    {"value": (-1.55e5, 0.0), "x": (2.9, 3.0)}],
-           "right1": (-2.10e5, 1.78e4),
-           "bottom2": [(-3.73, 0.172), {"value": (811.0, 0.0), "x": (2.5, 2.6)},
-                       {"value": (-367.0, 0.0), "x": (2.9, 3.0)}],
-           "right2": (805.0, -1.19)}
-DEMO_F2 = {"top1": [(3.91e3, -2.43e3), {"value": (0.0, 6.11e5), "x": (2.2, 2.3)},
-                    {"value": (1.31e6, 0.0), "x": (2.9, 3.0)}],
-           "right1": (5.55e4, -4.71e3),
-           "bottom2": [(0.987, -0.0455), {"value": (669.0, 0.0), "x": (2.5, 2.6)},
-                       {"value": (-604.0, 0.0), "x": (2.9, 3.0)}],
-           "right2": (-213.0, 0.315)}
-DEMO_BODY_FORCE1 = {"body1": (-6.81e4, -2.95e3), "body2": (141.0, 0.257)}
-DEMO_BODY_FORCE2 = {"body1": (1.80e4, 780.0), "body2": (-37.2, -0.0679)}
-DEMO_FRICTIONS = (0.1, 0.6, 30.0)
-DEMO_ALPHA = (0.0, 1.0)
-
-
-def build(friction, comm=None):
-    """The demo's contact system for friction coefficient ``friction``."""
-    return cfcontact.two_blocks(friction=friction, tractions1=DEMO_F1, tractions2=DEMO_F2,
-                                body_force1=DEMO_BODY_FORCE1, body_force2=DEMO_BODY_FORCE2, comm=comm, **DEMO_MODEL)
+# The model and the load path (numbers, and why this model) live in the package, where the
+# benchmark and the tests use them too: cfcontact/demo_models.py.
+build = build_demo
 
 
 def fold_component(path):
@@ -86,11 +48,6 @@ def fold_component(path):
         return plotting.default_component(path)
     lam_n = path.lams[:, nodes]
     return ("lam_n", nodes[int(np.argmax(lam_n.max(axis=0) - lam_n.min(axis=0)))])
-
-
-def worst_residual(system, path, solver=None):
-    """Worst relative violation of (1)-(3) over the stored points of a path."""
-    return max((cfcontact.verify(system, y, alpha, solver=solver).worst() for alpha, y in path.points), default=0.0)
 
 
 def run(frictions=DEMO_FRICTIONS, output="output/demo", method="seed", render=True, log=print):
@@ -121,7 +78,7 @@ def run(frictions=DEMO_FRICTIONS, output="output/demo", method="seed", render=Tr
             "fold_alphas": [t.alpha for t in path.folds],
             "linear_solves": work.linear_solves, "factorizations": work.factorizations,
             "wall_time_path": t_path, "wall_time_assembly": t_asm,
-            "worst_residual": worst_residual(system, path), "events": [e.kind for e in path.events],
+            "worst_residual": worst_residual(system, path, points=path.points), "events": [e.kind for e in path.events],
         }
         tag = f"F{F:g}"
         if rank0:

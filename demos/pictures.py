@@ -16,7 +16,7 @@ two_blocks         two_blocks.toml             two stacked blocks (the seed's mo
 foundation         foundation.toml             one block on a rigid foundation
 arc                arc.toml                    convex arc bottom in a matching concave seat
 inclined           inclined.toml               the two blocks rotated by 20 degrees
-user_msh           user_msh.toml               a user's .msh (written here by meshes/two_blocks.py)
+user_msh           user_msh.toml               a user's .msh (written here by cfcontact.meshes.two_blocks)
 cylinder           (Python: BUILDERS)          a half-cylinder pressed on a block (Hertz), initial gap
 punch              (Python: BUILDERS)          a flat punch with rounded edges on a block
 nonmatching        (Python: BUILDERS)          two blocks with 12 and 17 cells along the interface
@@ -77,9 +77,9 @@ def _builders():
 
 
 def _user_msh(case_file, workdir):
-    """A copy of user_msh.toml in workdir, next to the mesh it names (written by meshes/two_blocks.py)."""
+    """A copy of user_msh.toml in workdir, next to the mesh it names (written by ``python -m cfcontact.meshes.two_blocks``)."""
     shutil.copy(case_file, os.path.join(workdir, os.path.basename(case_file)))
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"),
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks",
                     os.path.join(workdir, "two_blocks_6x2.msh"), "--nx", "6", "--ny", "2"],
                    check=True, capture_output=True)
     return os.path.join(workdir, os.path.basename(case_file))
@@ -94,15 +94,15 @@ def picture(variant, output, window_size=(600, 360), log=print):
 
     magnification = None
     if variant in VARIANTS:
-        from cfcontact import cli
+        from cfcontact.case import build_system, load_case
 
         case_name, alpha, title = VARIANTS[variant]
         case_file = os.path.join(CASES, case_name)
         with tempfile.TemporaryDirectory() as tmp:
             if variant == "user_msh":
                 case_file = _user_msh(case_file, tmp)
-            case = cli.load_case(case_file)
-            system = cli.build_system(case)
+            case = load_case(case_file)
+            system = build_system(case)
         friction = _friction(case)
     else:
         factory, alpha, title, *mag = _builders()[variant]

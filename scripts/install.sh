@@ -3,8 +3,9 @@
 #
 #   scripts/install.sh          (as root, or as a user with sudo)
 #
-# * Debian packages (FEniCSx/dolfinx, PETSc, gmsh, SciPy, Matplotlib, pytest, hypothesis,
-#   OpenBLAS, Open MPI, Xvfb; on trixie also Debian's PyVista/VTK), installed only when missing.
+# * Debian packages (FEniCSx/dolfinx, PETSc, gmsh, SciPy, Matplotlib, threadpoolctl, pytest,
+#   hypothesis, OpenBLAS, Open MPI, Xvfb; on trixie also Debian's PyVista/VTK), installed only
+#   when missing.
 # * .venv in the repository root: /usr/bin/python3 -m venv --system-site-packages, so Debian's
 #   dolfinx/petsc4py/numpy are used as they are.
 # * Debian 12 only: PyVista and VTK from PyPI into .venv, with NumPy and Matplotlib held at
@@ -35,7 +36,7 @@ die() { say "error: $*"; exit 1; }
 # ---------------------------------------------------------------------------------------------
 CODENAME=$( . /etc/os-release 2>/dev/null && echo "${VERSION_CODENAME:-}" ) || CODENAME=
 PKGS=(python3-dolfinx-real python3-gmsh python3-venv python3-pip python3-setuptools python3-wheel
-      python3-scipy python3-matplotlib python3-pytest python3-hypothesis
+      python3-scipy python3-matplotlib python3-threadpoolctl python3-pytest python3-hypothesis
       libopenblas0-pthread openmpi-bin xvfb xauth)
 case "$CODENAME" in
     bookworm)
@@ -208,7 +209,7 @@ say "installing cfcontact (editable)"
 # 5. Checks.
 "$VENV/bin/python" - "$REPO" <<'EOF'
 import importlib.util, os, sys
-import numpy, scipy, matplotlib, gmsh, dolfinx, pyvista, vtk
+import numpy, scipy, matplotlib, gmsh, dolfinx, pyvista, vtk, threadpoolctl
 from mpi4py import MPI
 from petsc4py import PETSc
 v = PETSc.Vec().createSeq(4); v.set(1.0); assert v.sum() == 4.0   # petsc4py works with this numpy

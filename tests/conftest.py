@@ -43,3 +43,8 @@ def pytest_collection_modifyitems(session, config, items):
     """
     first = ("test_render.py", "test_cli.py", "test_variants.py")
     items.sort(key=lambda item: 0 if item.fspath.basename in first else 1)
+    # every test that runs mpirun carries the mpi marker (so that -m "not mpi" leaves them all out)
+    unmarked = [item.nodeid for item in items
+                if "run_mpi" in getattr(item, "fixturenames", ()) and item.get_closest_marker("mpi") is None]
+    if unmarked:
+        raise pytest.UsageError(f"tests using run_mpi without @pytest.mark.mpi: {unmarked}")

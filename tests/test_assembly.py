@@ -16,7 +16,7 @@ pytest.importorskip("gmsh")
 from cfcontact import compat  # noqa: E402
 from cfcontact.assembly import assemble_contact_system, full_stiffness, lame_parameters  # noqa: E402
 from cfcontact.errors import GeometryError, InputError  # noqa: E402
-from cfcontact.models import _meshes_module, two_blocks  # noqa: E402
+from cfcontact.models import two_blocks  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -24,7 +24,9 @@ E, NU = 2.1e11, 0.3
 
 
 def geo():
-    return _meshes_module("two_blocks")
+    from cfcontact.meshes import two_blocks as geo
+
+    return geo
 
 
 def dof(system, node, comp):
@@ -314,9 +316,10 @@ def test_rigid_foundation():
         np.testing.assert_array_equal(N[i], expected)
 
 
+@pytest.mark.slow
 def test_msh_file_matches_model(tmp_path):
     path = tmp_path / "blocks.msh"
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), str(path),
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks", str(path),
                     "--nx", "5", "--ny", "2", "--cell", "triangle"], check=True)
     kw = dict(tractions1={"top1": (1.0, -2.0)}, tractions2={"right2": (0.5, 0.0)}, friction=0.4)
     A = assemble_contact_system(str(path), **kw)

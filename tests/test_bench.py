@@ -24,15 +24,14 @@ def bench(tmp_path_factory):
         return json.load(fh), proc.stdout
 
 
+@pytest.mark.slow
 def test_bench_part_a_fields_and_agreement(bench):
     data, stdout = bench
     assert "Part A" in stdout and "Part B" in stdout
-    if DEMOS not in sys.path:
-        sys.path.insert(0, DEMOS)
-    import main as demo_main  # the demo's constants (the lead tunes them)
+    from cfcontact.demo_models import DEMO_FRICTIONS  # the demo's constants (the lead tunes them)
 
     rows = data["part_a"]
-    assert [(r["case"], r["friction"]) for r in rows] == [(c, F) for c in ("demo", "blocks") for F in demo_main.DEMO_FRICTIONS]
+    assert [(r["case"], r["friction"]) for r in rows] == [(c, F) for c in ("demo", "blocks") for F in DEMO_FRICTIONS]
     for r in rows:
         for key in ("n", "m", "speedup", "same_set_changes", "max_alpha_difference", "alphas_within_h_min", "h_min"):
             assert key in r, key
@@ -59,6 +58,7 @@ def test_bench_part_a_fields_and_agreement(bench):
         assert r["speedup_median"] == pytest.approx(r["seed"]["median_wall_time"] / r["exact"]["median_wall_time"])
 
 
+@pytest.mark.slow
 def test_bench_part_b_fields(bench):
     data, _ = bench
     rows = data["part_b"]
@@ -73,6 +73,7 @@ def test_bench_part_b_fields(bench):
         assert r["condensation"] in ("schur", "solves", "forward")
 
 
+@pytest.mark.slow
 def test_bench_wrapper_and_bad_options(tmp_path):
     env = dict(os.environ)
     env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")

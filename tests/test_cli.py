@@ -12,7 +12,8 @@ import pytest
 from matplotlib.image import imread
 
 import cfcontact
-from cfcontact import cli
+from cfcontact import case as case_file
+from cfcontact import cli, run
 from cfcontact.path import SolutionPath
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -81,7 +82,7 @@ def cases(tmp_path_factory):
     for name in os.listdir(CASES):
         if name.endswith(".toml"):
             shutil.copy(os.path.join(CASES, name), d / name)
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), str(d / MSH_NAME),
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks", str(d / MSH_NAME),
                     "--nx", "6", "--ny", "2"], check=True, capture_output=True, env=_env(), cwd=ROOT)
     return d
 
@@ -96,6 +97,7 @@ def small_run(tmp_path_factory):
 
 
 # ------------------------------------------------------------------ run
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["two_blocks", "inclined", "user_msh"])
 def test_example_cases_run(cases, name):
     case = str(cases / f"{name}.toml")
@@ -116,6 +118,7 @@ def test_example_cases_run(cases, name):
     assert path.geometry is not None and len(path.transitions) == len(summary["transitions"])
 
 
+@pytest.mark.slow
 def test_example_case_via_python_m(cases):
     """python -m cfcontact run, in a subprocess (the foundation example)."""
     case = str(cases / "foundation.toml")
@@ -132,6 +135,7 @@ def test_example_case_via_python_m(cases):
     assert proc.returncode == 0 and "transitions" in proc.stdout
 
 
+@pytest.mark.slow
 def test_run_outputs_pdf_and_animation(tmp_path):
     case = _write(tmp_path, SMALL.replace("[output]", '[output]\nplot_formats = ["png", "pdf"]\n'
                                           'render_animation = true\nanimation_frames = 4\n'
@@ -143,6 +147,7 @@ def test_run_outputs_pdf_and_animation(tmp_path):
     _assert_picture(str(res / "path.png"))
 
 
+@pytest.mark.slow
 def test_run_refuses_existing_output_then_force(small_run, capsys):
     case, out = small_run
     before = os.path.getmtime(os.path.join(out, "summary.json"))
@@ -153,6 +158,7 @@ def test_run_refuses_existing_output_then_force(small_run, capsys):
     assert not os.path.exists(out + ".partial") and not os.path.exists(out + ".old")
 
 
+@pytest.mark.slow
 def test_quiet_prints_nothing_verbose_shows_progress(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "--quiet"]) == 0
@@ -210,6 +216,7 @@ def test_bad_input_exit_2_one_message_no_output(tmp_path, capsys, label, text, w
     assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # no output folder, no .partial
 
 
+@pytest.mark.slow
 def test_bad_input_msh_tag_names_valid_groups(cases, tmp_path, capsys):
     shutil.copy(cases / MSH_NAME, tmp_path / MSH_NAME)
     case = _write(tmp_path, f'[geometry]\nkind = "msh"\nfile = "{MSH_NAME}"\n[loads]\nclamp = ["left1", "left2"]\n'
@@ -243,6 +250,7 @@ def test_info(small_run, capsys):
     assert len(rep["transitions"]) == json.load(open(os.path.join(out, "summary.json")))["summary"]["transitions"]
 
 
+@pytest.mark.slow
 def test_plot(small_run, tmp_path):
     _, out = small_run
     png = str(tmp_path / "p.png")
@@ -258,6 +266,7 @@ def test_plot(small_run, tmp_path):
     assert cli.main(["plot", out, "-o", str(tmp_path / "p.jpg")]) == 2
 
 
+@pytest.mark.slow
 def test_render(small_run, tmp_path, capsys):
     _, out = small_run
     one = str(tmp_path / "one.png")
@@ -301,28 +310,31 @@ def test_stop_after_transitions_and_resume(tmp_path, small_run):
     assert len(partial.transitions) == 3
 
 
+@pytest.mark.slow
 def test_stop_at_alpha_and_resume(tmp_path, small_run):
     partial = _resume_equals(tmp_path, small_run, ["--stop-at-alpha", "0.6"])
     assert partial.alphas[-1] >= 0.6 and partial.alphas[-2] < 0.6
 
 
+@pytest.mark.slow
 def test_time_limit_and_resume(tmp_path, small_run):
     partial = _resume_equals(tmp_path, small_run, ["--time-limit", "1e-6"])
     assert len(partial.alphas) == 1  # stopped at the start point
 
 
+@pytest.mark.slow
 def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
-    on_point = cli._Runner.on_point
+    on_point = run.Runner.on_point
 
     def interrupt_at_40(self, pt):
         if pt.index == 40:
             signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
         return on_point(self, pt)
 
-    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_40)
+    monkeypatch.setattr(run.Runner, "on_point", interrupt_at_40)
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q"]) == 130
-    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    monkeypatch.setattr(run.Runner, "on_point", on_point)
     state = json.loads((tmp_path / "case_out.partial" / "checkpoint" / "state.json").read_text())
     assert "Ctrl-C" in state["reason"]
     assert cli.main(["run", case, "-q", "--resume"]) == 0
@@ -330,10 +342,11 @@ def test_ctrl_c_and_resume(tmp_path, small_run, monkeypatch):
         os.path.join(small_run[1], "path")))
 
 
+@pytest.mark.slow
 def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkeypatch):
     saves = []
-    save = cli.save_checkpoint
-    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    save = run.save_checkpoint
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
     assert len(saves) > 100 and set(saves) == {"checkpoint"}
@@ -342,6 +355,7 @@ def test_periodic_checkpoints_do_not_change_the_path(tmp_path, small_run, monkey
     assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
 
 
+@pytest.mark.slow
 def test_resume_checks(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "-q", "--resume"]) == 2
@@ -358,7 +372,7 @@ def test_failure_removes_partial_folder(tmp_path, monkeypatch, capsys):
     def boom(*a, **k):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(cli, "write_outputs", boom)
+    monkeypatch.setattr(run, "write_outputs", boom)
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case]) == 1
     assert "boom" in capsys.readouterr().err
@@ -469,17 +483,17 @@ def test_exact_stop_and_resume(tmp_path, exact_run, stop_args, code):
 
 def test_exact_stop_twice_ctrl_c_and_resume(tmp_path, exact_run, monkeypatch):
     """Ctrl-C, then a stop condition on the resumed run, then the rest: same result."""
-    on_point = cli._Runner.on_point
+    on_point = run.Runner.on_point
 
     def interrupt_at_4(self, pt):
         if pt.index == 4:
             signal.raise_signal(signal.SIGINT)  # handled by the CLI: stop at the next point
         return on_point(self, pt)
 
-    monkeypatch.setattr(cli._Runner, "on_point", interrupt_at_4)
+    monkeypatch.setattr(run.Runner, "on_point", interrupt_at_4)
     case = _write(tmp_path, EXACT)
     assert cli.main(["run", case, "-q"]) == 130
-    monkeypatch.setattr(cli._Runner, "on_point", on_point)
+    monkeypatch.setattr(run.Runner, "on_point", on_point)
     ck = tmp_path / "case_out.partial" / "checkpoint"
     state = json.loads((ck / "state.json").read_text())
     assert "Ctrl-C" in state["reason"] and state["resumable"]
@@ -492,8 +506,8 @@ def test_exact_stop_twice_ctrl_c_and_resume(tmp_path, exact_run, monkeypatch):
 
 def test_exact_periodic_checkpoints_do_not_change_the_path(tmp_path, exact_run, monkeypatch):
     saves = []
-    save = cli.save_checkpoint
-    monkeypatch.setattr(cli, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    save = run.save_checkpoint
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
     case = _write(tmp_path, EXACT)
     assert cli.main(["run", case, "-q", "--checkpoint-every", "1e-9"]) == 0
     ref = SolutionPath.load(os.path.join(exact_run[1], "path"))
@@ -508,9 +522,23 @@ def test_windowed_tractions_in_a_case_file(tmp_path):
     case = _write(tmp_path, '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\n[loads.f1]\n'
                             'top1 = [[0.0, -1.0e6], {value = [2.0e5, -3.0e5], x = [1.5, 2.5]}]\n'
                             '[loads.f2]\nbottom2 = {value = [1.0e5, 0.0], x = [0.0, 1.0]}\n')
-    system = cli.build_system(cli.load_case(case))
+    system = case_file.build_system(case_file.load_case(case))
     ref = cfcontact.two_blocks(nx=6, ny=2, tractions1={"top1": [(0.0, -1.0e6), {"value": (2.0e5, -3.0e5), "x": (1.5, 2.5)}]},
                                tractions2={"bottom2": {"value": (1.0e5, 0.0), "x": (0.0, 1.0)}})
     for a, b in zip(system.loads_numpy(), ref.loads_numpy()):
         assert np.abs(a).max() > 0 and np.array_equal(a, b)
     assert system.info["tractions1"]["top1=12"][1] == {"value": [2.0e5, -3.0e5], "x": [1.5, 2.5]}
+
+
+def test_seed_periodic_checkpoints_do_not_restart_the_run(tmp_path, monkeypatch):
+    """With the seed method a periodic checkpoint is a save: one stepper traces the whole path."""
+    from cfcontact import seed
+
+    made, saves = [], []
+    init, save = seed.SeedStepper.__init__, run.save_checkpoint
+    monkeypatch.setattr(seed.SeedStepper, "__init__", lambda self, *a, **k: made.append(1) or init(self, *a, **k))
+    monkeypatch.setattr(run, "save_checkpoint", lambda *a: saves.append(a[3]) or save(*a))
+    case = _write(tmp_path, SMALL.replace("[output]", "[output]\nplot = false\nrender_panel = false"))
+    assert cli.main(["run", case, "-q", "--checkpoint-every", "0.02"]) == 0
+    assert made == [1] and saves and set(saves) == {"checkpoint"}
+    assert SolutionPath.load(str(tmp_path / "case_out" / "path")).status == "completed"

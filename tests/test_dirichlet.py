@@ -38,11 +38,13 @@ def test_prescribed_translation_moves_a_free_block_rigidly():
     assert np.abs(geo.displacement_field(sol.u)[geo.prescribed[:, 0].astype(int)]).max() == 0.0
 
 
+@pytest.mark.slow  # (a subprocess)
 def test_lifting_against_the_unreduced_stiffness(tmp_path):
     """f_k = -K_fD u_D^k (no tractions): compared with the full stiffness of all DOFs."""
     msh = str(tmp_path / "blocks.msh")
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "two_blocks.py"), msh, "--nx", "5", "--ny", "2",
-                    "--cell", "triangle"], check=True, capture_output=True)
+    subprocess.run([sys.executable, "-m", "cfcontact.meshes.two_blocks", msh, "--nx", "5", "--ny", "2",
+                    "--cell", "triangle"], check=True, capture_output=True,
+                   env=dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", "")))
     dirichlet = {"top1": {"x": (1e-3, 2e-3), "y": (-1e-3, -3e-3)}, "right2": {"x": 0.0}}
     system = assemble_contact_system(msh, clamp=("bottom2",), dirichlet=dirichlet, tractions1={}, tractions2={},
                                      E=1e3, nu=0.25)

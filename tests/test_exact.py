@@ -291,6 +291,7 @@ def test_exact_with_condensed_backend_one_factorization():
 MPI_SCRIPT = os.path.join(HERE, "mpi_condensed.py")
 
 
+@pytest.mark.mpi
 def test_condensed_and_exact_under_mpi(run_mpi, tmp_path):
     out = tmp_path / "mpi.json"
     run_mpi(2, MPI_SCRIPT, str(out), timeout=300)
@@ -513,13 +514,11 @@ def test_follow_alternative_stopped_by_callback_keeps_the_main_resume_state():
     """A callback that stops an alternative's sub-run ends that sub-run; the path's resume state
     stays the main run's (here: none, the main run completed), so a resume cannot continue the
     alternative as if it were the main run."""
-    from cfcontact.path import PathOptions
-
     system = two_identical_nodes()
     path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
     assert path.status == "completed" and path.resume_state is None
     i = next(i for i, e in enumerate(path.events) if e.kind == "branch_point")
     k = next(k for k, a in enumerate(path.events[i].data["alternatives"]) if not a["chosen"])
-    res = follow_alternative(system, path, i, k, options=PathOptions(callback=lambda point: True))
+    res = follow_alternative(system, path, i, k, callback=lambda point: True)
     assert res["status"] == "stopped by callback" and len(res["branches"]) == 1
     assert path.status == "completed" and path.resume_state is None

@@ -382,6 +382,7 @@ def _picture(fn):
     return np.asarray(img[..., :3], dtype=int)
 
 
+@pytest.mark.slow
 def test_run_writes_stress_panel_and_xdmf(run_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     assert "solutions.xdmf" in summary["files"] and "panel.png" in summary["files"]
@@ -397,6 +398,7 @@ def test_run_writes_stress_panel_and_xdmf(run_dir):
     np.testing.assert_array_equal(vm[fields.grid_name(0, sols[0].alpha)], fields.von_mises(path.geometry, sols[0].u))
 
 
+@pytest.mark.slow
 def test_render_stress(run_dir, tmp_path, capsys):
     pytest.importorskip("pyvista", reason="pyvista is not installed (scripts/install.sh installs it)")
     plain, stress = tmp_path / "plain.png", tmp_path / "stress.png"
@@ -424,6 +426,7 @@ def test_render_stress(run_dir, tmp_path, capsys):
     assert "stores no material" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_render_animation_stress(run_dir, tmp_path):
     """render --animation --stress: frames coloured by the von Mises stress, on one scale; the
     plain animation's frames differ from them."""
@@ -442,6 +445,7 @@ def test_render_animation_stress(run_dir, tmp_path):
         render.render_animation(SolutionPath.load(run_dir / "path"), tmp_path / "x", frames=2, stress=np.ones(3))
 
 
+@pytest.mark.slow
 def test_export_cli(run_dir, tmp_path, capsys):
     path = SolutionPath.load(run_dir / "path")
     out = tmp_path / "e.xdmf"

@@ -14,7 +14,7 @@ import pytest
 import cfcontact
 from cfcontact.assembly import assemble_contact_system
 from cfcontact.errors import GeometryError, InputError
-from cfcontact.models import _meshes_module
+import importlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CYL = dict(radius=1.0, width=3.0, depth=1.5, zone=0.3, size=0.04, size_far=0.4, E=1.0, nu=0.3)
@@ -114,6 +114,7 @@ def test_rounded_punch_gap_and_pressure_peaks_under_the_edges():
     assert p[np.argmin(np.abs(x))] < 0.5 * p.max()
 
 
+@pytest.mark.slow  # (a subprocess)
 @pytest.mark.parametrize("script,kwargs", [("cylinder_on_block", CYL), ("rounded_punch", PUNCH)])
 def test_script_writes_a_non_matching_msh_that_assembles_alike(tmp_path, script, kwargs):
     """A user's .msh whose contact boundaries do not match: refused by node pairing (with the hint),
@@ -121,8 +122,8 @@ def test_script_writes_a_non_matching_msh_that_assembles_alike(tmp_path, script,
     geo_keys = {k: v for k, v in kwargs.items() if k not in ("E", "nu")}
     msh = str(tmp_path / f"{script}.msh")
     args = [a for k, v in geo_keys.items() for a in ("--" + k.replace("_", "-"), str(v))]
-    subprocess.run([sys.executable, os.path.join(ROOT, "meshes", f"{script}.py"), msh, *args], check=True,
-                   capture_output=True)
+    subprocess.run([sys.executable, "-m", f"cfcontact.meshes.{script}", msh, *args], check=True, capture_output=True,
+                   env=dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", "")))
     load = dict(clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.03)}}, E=1.0, nu=0.3)
     with pytest.raises(GeometryError, match="non-matching contact interface.*pairing='segment'"):
         assemble_contact_system(msh, **load)
@@ -147,7 +148,7 @@ def test_script_writes_a_non_matching_msh_that_assembles_alike(tmp_path, script,
 ])
 def test_geometry_parameters_validated(script, kwargs, error, words):
     with pytest.raises(error, match=words):
-        _meshes_module(script).check_parameters(**kwargs)
+        importlib.import_module(f"cfcontact.meshes.{script}").check_parameters(**kwargs)
     with pytest.raises(error, match=words):  # the builder validates before meshing
         getattr(cfcontact, script)(**kwargs)
 
@@ -157,3 +158,28 @@ def test_half_model_refuses_a_tangential_shift():
         cfcontact.cylinder_on_block(**CYL, half=True, shift=(0.0, 1e-3))
     with pytest.raises(InputError, match="indentation must be a number or a pair"):
         cfcontact.cylinder_on_block(**CYL, indentation="deep")
+
+
+# ------------------------------------------------------------------ README pictures
+NEW_VARIANTS = ("cylinder", "punch", "nonmatching", "obstacle")
+
+
+def test_readme_pictures_of_the_new_variants():
+    from matplotlib.image import imread
+
+    readme = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    for v in NEW_VARIANTS:
+        fn = os.path.join(ROOT, "docs", "img", f"{v}.png")
+        img = imread(fn)
+        assert img.shape[:2] == (360, 600) and img[..., :3].std() > 0.02, fn
+        assert os.path.getsize(fn) < 150_000, fn
+        assert f"docs/img/{v}.png" in readme, v
+
+
+@pytest.mark.slow  # (a render)
+def test_pictures_script_renders_a_python_built_variant(tmp_path):
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "nonmatching",
+                           "-o", str(tmp_path)], capture_output=True, text=True, timeout=600, cwd=ROOT,
+                          env=dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", "")))
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["nonmatching.png"] and "m = 12" in proc.stdout

@@ -205,3 +205,29 @@ def test_ssnm_sets_equal_ssnm_from_zero(systems):
             Z = solver.ssnm_sets(system.load(alpha), 1e-9, 100)
             assert Z is not None and Z.states() == ref.sets.states()
         assert solver.ssnm_sets(system.load(0.5), 1e-300, 1) is None
+
+
+def test_schur_complement_calls_are_found_by_feature_detection():
+    """petsc4py does not wrap MatFactorSetSchurIS / MatFactorGetSchurComplement: cfcontact.compat_petsc
+    finds them through petsc4py's extension module (no scan of the process's mappings), here on
+    every supported PETSc; a factor matrix without a Schur request gives no Schur complement."""
+    from petsc4py import PETSc
+
+    from cfcontact import compat_petsc
+
+    assert compat_petsc.schur_complement_available()
+    K = PETSc.Mat().createAIJ((3, 3), comm=PETSc.COMM_SELF)
+    K.setUp()
+    for i in range(3):
+        K.setValue(i, i, 2.0)
+    K.assemble()
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOperators(K)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    ksp.getPC().setFactorSetUpSolverType()
+    compat_petsc.factor_set_schur_is(ksp.getPC().getFactorMatrix(), [1, 2])
+    ksp.setUp()
+    Sc = compat_petsc.factor_schur_complement(ksp.getPC().getFactorMatrix(), 2)
+    np.testing.assert_allclose(Sc, 2.0 * np.eye(2))

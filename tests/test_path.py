@@ -142,7 +142,7 @@ def test_bad_options_and_ranges():
         cfcontact.SolutionPath.load("/nonexistent-dir")
 
 
-@pytest.mark.parametrize("m,seed", [(3, 3), (3, 131), (5, 43), (5, 270)])
+@pytest.mark.parametrize("m,seed", [(3, 3), (3, 131), pytest.param(5, 43, marks=pytest.mark.slow), (5, 270)])
 def test_start_point_when_ssnm_from_zero_fails(m, seed):
     """At F = 30 SSNM from 0 cycles on these small random systems; the start cascade (from the
     frictionless solution, from the open solution, other rho) finds a solution of (1)-(3) with the
@@ -170,3 +170,34 @@ def test_with_rho():
     for bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(cfcontact.InputError, match="rho"):
             s.with_rho(bad)
+
+
+def test_seed_checkpoint_is_a_save_and_resumes_to_the_same_path(tmp_path):
+    """A CHECKPOINT answer saves the live path and the stepper's current resume state and the run
+    goes on (its path is that of a run without checkpoints); every saved checkpoint, loaded and
+    resumed, ends in that same path."""
+    import json
+
+    from cfcontact.options import AlphaSpan, PathOptions
+    from cfcontact.path import path_stepper
+    from cfcontact.stepper import CHECKPOINT
+
+    system = one_node(2.5, K1)
+    ref = cfcontact.trace_path(system, 0.0, 1.0)
+    saved = []
+
+    def save(path, state):
+        assert path.status == "running" and path.stats["linear_solves"] > 0
+        saved.append((path.save(tmp_path / f"ck{len(saved)}"), json.loads(json.dumps(state))))
+
+    options = PathOptions()
+    stepper = path_stepper(system, AlphaSpan.of(0.0, 1.0, options), options, "seed")
+    path = stepper.run(lambda point: CHECKPOINT if point.index % 9 in (0, 4) else None, save)
+    assert len(saved) > 10
+    for p in [path] + [cfcontact.trace_path(system, 0.0, 1.0, resume={"path": cfcontact.SolutionPath.load(fn),
+                                                                       "state": state})
+                       for fn, state in saved[::3]]:
+        assert p.status == "completed"
+        np.testing.assert_array_equal(p.alphas, ref.alphas)
+        np.testing.assert_array_equal(p.ys, ref.ys)
+        assert [t.to_dict() for t in p.transitions] == [t.to_dict() for t in ref.transitions]

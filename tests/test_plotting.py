@@ -74,6 +74,7 @@ def test_plot_path_png_size_and_fold_markers(one_node_path, tmp_path):
     _png_ok(fn, (600, 400))
 
 
+@pytest.mark.slow
 def test_no_pyplot_state(tmp_path):
     """Plotting and saving never import pyplot nor change the process-wide backend."""
     code = (

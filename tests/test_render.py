@@ -138,6 +138,7 @@ def test_auto_magnification(geom):
     assert render.auto_magnification(geom, [np.zeros_like(u)]) == 1.0
 
 
+@pytest.mark.slow
 def test_render_solution_png(geom, tmp_path):
     sol = make_solution(geom, MIXED)
     fn = render.render_solution(geom, sol, tmp_path / "out" / "sol.png", window_size=(640, 400), title="two blocks")
@@ -152,6 +153,7 @@ def test_render_solution_png(geom, tmp_path):
     assert _count(img, render.STATE_COLORS["slip+-"]) == 0
 
 
+@pytest.mark.slow
 def test_render_solution_state_colours_follow_states(geom, tmp_path):
     sol = make_solution(geom, ["stick"] * 5)
     img = _rgb(render.render_solution(geom, sol, tmp_path / "stick.png", window_size=(500, 400)))
@@ -160,6 +162,7 @@ def test_render_solution_state_colours_follow_states(geom, tmp_path):
         assert _count(img, render.STATE_COLORS[state]) == 0, state
 
 
+@pytest.mark.slow
 def test_render_solution_deformation_changes_picture(geom, tmp_path):
     sol0 = make_solution(geom, MIXED, scale=0.0)
     sol1 = make_solution(geom, MIXED, scale=1e-3)
@@ -168,6 +171,7 @@ def test_render_solution_deformation_changes_picture(geom, tmp_path):
     assert (np.abs(a - b).max(axis=-1) > 30).mean() > 0.01
 
 
+@pytest.mark.slow
 def test_render_solution_stress(geom, tmp_path):
     sol = make_solution(geom, MIXED)
     stress = np.linspace(0.0, 1.0, len(geom.cells))
@@ -193,6 +197,7 @@ def test_render_errors(geom, tmp_path):
         render.render_solution(None, sol, tmp_path / "x.png")
 
 
+@pytest.mark.slow
 def test_render_panel_of_three(geom, tmp_path):
     sols = [make_solution(geom, ["stick"] * 5, 1e-3, 0.1),
             make_solution(geom, ["open", "open", "stick", "slip+", "slip+"], 2e-3, 0.5),
@@ -216,6 +221,7 @@ def test_render_panel_of_three(geom, tmp_path):
     assert render.state_counts(MIXED) == {"open": 1, "stick": 2, "slip": 2}
 
 
+@pytest.mark.slow
 def test_render_animation_frames(synthetic_path, tmp_path):
     res = render.render_animation(synthetic_path, tmp_path / "anim", frames=5, window_size=(320, 240))
     assert res.kind == "png-frames" and res.frames == 5 and len(res.files) == 5
@@ -234,6 +240,7 @@ def test_render_animation_frames(synthetic_path, tmp_path):
     assert by_index.alphas == [0.0, 1.0] and by_index.frames == 2
 
 
+@pytest.mark.slow
 def test_render_animation_gif(synthetic_path, tmp_path):
     from PIL import Image
 
@@ -243,6 +250,7 @@ def test_render_animation_gif(synthetic_path, tmp_path):
         assert im.size == (240, 160) and getattr(im, "n_frames", 1) == 4
 
 
+@pytest.mark.slow
 def test_render_animation_mp4_or_fallback(synthetic_path, tmp_path):
     res = render.render_animation(synthetic_path, tmp_path / "a.mp4", frames=2, window_size=(160, 120))
     try:
@@ -262,6 +270,7 @@ def test_render_animation_needs_geometry(tmp_path):
         render.render_animation(path, tmp_path / "x.gif")
 
 
+@pytest.mark.slow
 def test_import_cfcontact_does_not_import_pyvista():
     code = ("import sys, cfcontact, cfcontact.render, cfcontact.plotting\n"
             "assert 'pyvista' not in sys.modules and 'vtk' not in sys.modules\n"
@@ -271,6 +280,7 @@ def test_import_cfcontact_does_not_import_pyvista():
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
 
 
+@pytest.mark.slow
 def test_start_and_stop_xvfb():
     """The Xvfb helper used when VTK needs an X server (Debian's VTK) and DISPLAY is unset."""
     import shutil

@@ -15,6 +15,7 @@ import hertz  # noqa: E402
 import mindlin  # noqa: E402
 
 COARSE = 0.02  # a / h ~ 5
+pytestmark = pytest.mark.slow  # (demos)
 
 
 @pytest.fixture(scope="module")

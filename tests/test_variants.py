@@ -12,9 +12,9 @@ import pytest
 from matplotlib.image import imread
 
 import cfcontact
+from cfcontact import case as case_file
 from cfcontact import cli
 from cfcontact.errors import GeometryError, InputError
-from cfcontact.models import _meshes_module
 from cfcontact.path import SolutionPath
 from reference import frictionless_dual
 
@@ -62,7 +62,7 @@ def _copy_case(tmp_path, name):
     (dict(cell="hexagon"), ["cell", "quadrilateral", "hexagon"], InputError),
 ])
 def test_arc_parameters_validated(kwargs, words, error):
-    geo = _meshes_module("arc_on_block")
+    from cfcontact.meshes import arc_on_block as geo
     with pytest.raises(error) as info:
         geo.check_parameters(**kwargs)
     for w in words:
@@ -130,9 +130,10 @@ def test_arc_frictionless_against_dual_qp(arc_model):
     assert saw_active and saw_open
 
 
+@pytest.mark.slow
 def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
     msh = tmp_path / "arc.msh"
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(msh),
+    proc = subprocess.run([sys.executable, "-m", "cfcontact.meshes.arc_on_block", str(msh),
                            "--half-angle", "40", "--nx", "12", "--ny", "3"],
                           capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
     assert proc.returncode == 0, proc.stderr
@@ -140,12 +141,13 @@ def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
                                                tractions1={"top1": (2e7, -1e8)}, tractions2={"top1": (1e8, -2e7)})
     assert (system.n, system.m) == (arc_model.n, arc_model.m)
     np.testing.assert_allclose(system.geometry.normals, arc_model.geometry.normals, rtol=0, atol=1e-12)
-    bad = subprocess.run([sys.executable, os.path.join(ROOT, "meshes", "arc_on_block.py"), str(tmp_path / "b.msh"),
+    bad = subprocess.run([sys.executable, "-m", "cfcontact.meshes.arc_on_block", str(tmp_path / "b.msh"),
                           "--half-angle", "120"], capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=300)
     assert bad.returncode == 2 and "half_angle" in bad.stderr and not (tmp_path / "b.msh").exists()
 
 
 # ------------------------------------------------------------------ arc on block: command line
+@pytest.mark.slow
 def test_arc_example_case_runs(tmp_path):
     case = _copy_case(tmp_path, "arc.toml")
     assert cli.main(["run", case, "-q"]) == 0
@@ -185,11 +187,12 @@ def test_arc_case_tags_and_default_clamps(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "base" in err and "bottom2=22" in err
     # default clamps left1 + bottom2: both bodies held, the model builds
-    system = cli.build_system(cli.validate_case({"geometry": {"kind": "arc", "nx": 4, "ny": 1}}))
+    system = case_file.build_system(case_file.validate_case({"geometry": {"kind": "arc", "nx": 4, "ny": 1}}))
     assert system.m == 5 and system.info["clamp"] == ["left1=14", "bottom2=22"]
 
 
 # ------------------------------------------------------------------ folds example
+@pytest.mark.slow
 def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
     case = _copy_case(tmp_path, "folds.toml")
     assert cli.main(["run", case, "-q"]) == 0
@@ -207,6 +210,7 @@ def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ README pictures
+@pytest.mark.slow
 def test_pictures_script_renders_a_variant(tmp_path):
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "arc",
                            "-o", str(tmp_path), "--window-size", "600", "360"],
@@ -227,6 +231,7 @@ def test_readme_pictures_present_and_small():
         assert f"docs/img/{v}.png" in readme, v
 
 
+@pytest.mark.slow
 def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
     """demos/cases/soft_layer.toml builds the main demo's system at F = 0.6 (same loads, bit for
     bit up to assembly order) and its path has two folds and three solutions."""
@@ -236,7 +241,7 @@ def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
     finally:
         sys.path.pop(0)
     case = _copy_case(tmp_path, "soft_layer.toml")
-    system = cli.build_system(cli.load_case(case))
+    system = case_file.build_system(case_file.load_case(case))
     ref = demo.build(0.6)
     assert (system.n, system.m) == (1320, 30)
     for a, b in zip(system.loads_numpy(), ref.loads_numpy()):

@@ -1,19 +1,13 @@
-"""What the gmsh scripts of ``meshes/`` share: the tag convention and the parameter checks.
-
-Importable as ``cfcontact.meshes.common`` and, when a script runs stand-alone
-(``python3 meshes/two_blocks.py ...``), from the script's folder; see :func:`load`.
-"""
+"""What the gmsh scripts of :mod:`cfcontact.meshes` share: the tag convention and the parameter checks."""
 
 from __future__ import annotations
 
 import contextlib
 import math
 import operator
+import os
 
-try:  # typed errors of the package when available; both are ValueErrors
-    from cfcontact.errors import GeometryError, InputError
-except Exception:  # pragma: no cover - running as a stand-alone script
-    InputError = GeometryError = ValueError
+from cfcontact.errors import GeometryError, InputError  # noqa: F401  (GeometryError: for the scripts)
 
 #: physical group numbers of every model (DESIGN.md; README "Tag convention"); ``sym1`` /
 #: ``sym2`` are the symmetry edges (x = 0) of half models, ``top2`` the top of a block outside
@@ -299,8 +293,6 @@ def script_main(argv, name, description, defaults, check_parameters, build, cell
     (one option per entry of ``defaults``; booleans are flags), writes a version 4.1 .msh file."""
     import argparse
 
-    import gmsh
-
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("output", help="output file (.msh)")
     for key, value in defaults.items():
@@ -316,13 +308,21 @@ def script_main(argv, name, description, defaults, check_parameters, build, cell
         params = check_parameters(**{k: getattr(args, k) for k in defaults})
     except ValueError as exc:
         ap.error(str(exc))
+    write_msh(args.output, name, build, **params)
+    return 0
+
+
+def write_msh(filename, model_name, build, **params):
+    """Build a model (``build(**params)``, a script's builder) in a gmsh session of its own and write
+    it to ``filename`` (MSH 4.1): what the scripts do when they run as programs."""
+    import gmsh
+
     gmsh.initialize([], False)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add(name)
+        gmsh.model.add(model_name)
         build(**params)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.write(args.output)
+        gmsh.write(os.fspath(filename))
     finally:
         gmsh.finalize()
-    return 0

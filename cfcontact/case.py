@@ -1,0 +1,634 @@
+"""Case files (TOML): the schema, its validation, and the model a case describes.
+
+The schema (:data:`SCHEMA`, one :class:`Key` per key with its type, default and doc) is the one
+source of the case-file format: :func:`validate_case` checks a parsed file against it, and
+:func:`reference_text` renders it as the annotated reference of ``cfcontact schema`` and
+docs/cli.md (a test keeps the two equal).  The ``[path]`` keys beyond ``method``, ``backend``,
+``alpha_start`` and ``alpha_end`` are generated from the fields of
+:class:`cfcontact.options.PathOptions`, and the checks of E and nu are those of
+:mod:`cfcontact.material`, the assembly's.
+
+Every key is checked before any work: :class:`CaseError` (exit code 2 of the command line)
+names the key and the valid keys, tags or values.  :func:`build_system` turns a validated case
+into a :class:`~cfcontact.system.ContactSystem` (it imports the FEM layer).
+
+Nothing here imports dolfinx or PETSc at import time.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass, fields
+from typing import Any, Optional
+
+from cfcontact.errors import InputError
+from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
+from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
+
+__all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
+           "build_system", "physics", "path_request", "parse_component", "reference_text"]
+
+
+class CaseError(InputError):
+    """A bad case file or command line argument (exit code 2)."""
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a case-file section: its type (see :data:`TYPE_NAMES`), the default filled in
+    by validation (None: none), the example shown by :func:`reference_text` (TOML text; None:
+    the key is shown commented out with its doc only) and a one-line doc."""
+
+    kind: str
+    default: Any = None
+    example: Optional[str] = None
+    doc: str = ""
+
+
+GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "arc", "msh")
+COMPONENT_NAMES = ("u", "lam_n", "lam_t")
+#: The sections that determine the path (a resumed run must have the same).
+PHYSICS_SECTIONS = ("geometry", "material", "contact", "loads", "path")
+
+TYPE_NAMES = {"int": "an integer", "float": "a number", "str": "a string", "bool": "a boolean (true/false)",
+              "tags": "a list of tags (names or numbers)",
+              "tractions": "a table {tag = [tx, ty] or windowed tractions}",
+              "body_force": "[bx, by] or a table {body = [bx, by]}", "formats": 'a list of "png"/"pdf"',
+              "component": '["lam_n", i], "lam_n:i" or an integer', "zoom": "[alpha_lo, alpha_hi] (+ [v_lo, v_hi])",
+              "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them",
+              "material": "a number or a table {body = number}"}
+
+_KIND = Key("str", None, '"two_blocks"', " | ".join(f'"{k}"' for k in GEOMETRY_KINDS))
+#: [geometry] keys of the block kinds ("two_blocks", "block_on_foundation", "inclined")
+BLOCK_GEOMETRY = {
+    "kind": _KIND,
+    "nx": Key("int", None, "12", "cells along the interface"),
+    "ny": Key("int", None, "4", "cells across each block"),
+    "length": Key("float", None, "3.0", "block width"),
+    "height": Key("float", None, "1.0", "block height"),
+    "height2": Key("float", None, None, "height of body 2 (default: height)"),
+    "cell": Key("str", None, '"quadrilateral"', 'or "triangle"'),
+    "angle": Key("float", None, None, 'degrees counter-clockwise, required for "inclined"'),
+}
+#: [geometry] keys of kind "arc" (cfcontact.arc_on_block)
+ARC_GEOMETRY = {
+    "kind": Key("str", None, '"arc"', "a convex circular-arc bottom in a matching seat (conforming)"),
+    "radius": Key("float", None, "1.0", "radius R of the arc, centred at (0, R); lowest point at the origin"),
+    "half_angle": Key("float", None, "45.0", "half opening angle, degrees in (0, 80]; normals turn by 2 x it"),
+    "height": Key("float", None, "0.5", "body 1 above the ends of the arc"),
+    "height2": Key("float", None, None, "body 2 below the lowest point (default: height)"),
+    "nx": Key("int", None, "16", "cells along the arc, >= 2"),
+    "ny": Key("int", None, "4", "cells across body 1"),
+    "ny2": Key("int", None, None, "cells across body 2 (default: ny)"),
+    "cell": Key("str", None, '"quadrilateral"', 'or "triangle"'),
+}
+#: [geometry] keys of kind "msh" (a user's gmsh file)
+MSH_GEOMETRY = {
+    "kind": Key("str", None, '"msh"', "a gmsh file following the tag convention (DESIGN.md)"),
+    "file": Key("str", None, '"model.msh"', "relative to the case file"),
+}
+
+
+def _toml(value) -> str:
+    """A Python value as TOML text (for the reference and the docs)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        text = repr(value)
+        if "e" in text or len(text) > 8:  # 2.1e11, 1e-5 rather than 210000000000.0, 1e-05
+            mantissa, _, exponent = f"{value:.6g}".partition("e")
+            text = mantissa + (f"e{int(exponent)}" if exponent else "")
+        return text if any(c in text for c in ".en") else text + ".0"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+def _path_keys() -> dict:
+    """[path]: the trace_path arguments, then every field of PathOptions (generated)."""
+    keys = {
+        "method": Key("str", "seed", '"seed"', '"seed" (predictor-corrector, Section 4) or "exact" (piecewise-affine)'),
+        "backend": Key("str", "auto", None, 'DirNeu solver: "full" (J(Z) per branch), "condensed" (K factored '
+                                            'once) or "auto" (condensed for exact when m <= 2000)'),
+        "alpha_start": Key("float", 0.0, "0.0", "f(alpha) = (1 - alpha) f1 + alpha f2, from alpha_start"),
+        "alpha_end": Key("float", 1.0, "1.0", "towards alpha_end"),
+    }
+    for f in fields(PathOptions):
+        notes = [] if f.default is None else [f"default {_toml(f.default)}"]
+        if set(f.metadata["methods"]) != set(METHODS):
+            notes.append(f"{', '.join(f.metadata['methods'])} only")
+        doc = f.metadata["doc"] + (f" ({'; '.join(notes)})" if notes else "")
+        keys[f.name] = Key(f.metadata["kind"], None, None, doc)
+    return keys
+
+
+SCHEMA = {
+    "geometry": None,  # depends on the kind: see geometry_keys
+    "material": {
+        "E": Key("material", None, _toml(DEFAULT_MATERIAL["E"]),
+                 "Young's modulus [Pa] > 0, or one per body: {body1 = 2.1e11, body2 = 2.1e8}"),
+        "nu": Key("material", None, _toml(DEFAULT_MATERIAL["nu"]), "Poisson's ratio in (-1, 0.5), or one per body"),
+        "plane": Key("str", None, _toml(DEFAULT_MATERIAL["plane"]), 'or "stress"'),
+    },
+    "contact": {
+        "friction": Key("friction", 0.0, "0.5", "Coulomb coefficient >= 0, or a list with one per contact node"),
+        "rho": Key("float", None, None, "augmentation parameter > 0 (default: automatic)"),
+    },
+    "loads": {
+        "clamp": Key("tags", None, '["left1", "left2"]', "boundary tags (names or numbers) with u = 0"),
+        "body_force1": Key("body_force", None, None, "[bx, by] on every body, or a table {body1 = [bx, by]}"),
+        "body_force2": Key("body_force", None, None, "the same for f2"),
+        "f1": Key("tractions", None, "{top1 = [2.0e7, -1.0e8]}",
+                  "surface tractions of f1, tag = [tx, ty] (force per length); see below"),
+        "f2": Key("tractions", None, "{top1 = [1.0e8, -2.0e7]}", "surface tractions of f2"),
+    },
+    "path": _path_keys(),
+    "output": {
+        "plot": Key("bool", True, "true", "path.png: alpha against one component"),
+        "plot_formats": Key("formats", ["png"], '["png"]', '"png", "pdf"'),
+        "component": Key("component", None, None, '["lam_n", 12], "lam_n:12", "lam_t:3", "u:7" or an index of y '
+                                                  "(default: the most varying lam_n)"),
+        "zoom": Key("zoom", None, None, "alpha window of a zoom panel, [a0, a1] (+ value range: [a0, a1, v0, v1])"),
+        "render_panel": Key("bool", True, "true", "panel.png: the solutions at the alpha of largest multiplicity"),
+        "render_animation": Key("bool", False, "false", "the deformed configuration along the path"),
+        "animation_format": Key("str", "gif", '"gif"', '"gif" | "mp4" | "frames"'),
+        "animation_frames": Key("int", 60, "60", "frames of the animation"),
+        "magnification": Key("float", None, None, "displacement scale (default: automatic)"),
+        "window_size": Key("window", None, None, "[width, height] pixels of panel.png and of the animation"),
+        "stress": Key("bool", False, "false", "colour panel.png and the animation by the von Mises stress"),
+        "xdmf": Key("bool", False, "false", "solutions.xdmf (the panel's solutions) for ParaView"),
+    },
+}
+TOP_LEVEL = ("title", *SCHEMA)
+
+
+def geometry_keys(kind) -> dict:
+    """The [geometry] keys of a geometry kind."""
+    if kind == "msh":
+        return MSH_GEOMETRY
+    if kind == "arc":
+        return ARC_GEOMETRY
+    return BLOCK_GEOMETRY
+
+
+# ------------------------------------------------------------------ value checks
+def _tname(value):
+    return {bool: "boolean", int: "integer", float: "float", str: "string", list: "array",
+            dict: "table"}.get(type(value), type(value).__name__)
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _vec2(value, where):
+    if not (isinstance(value, list) and len(value) == 2 and all(_is_number(x) for x in value)):
+        raise CaseError(f"{where}: expected [x, y] (two numbers), got {_tname(value)} {value!r}")
+    if not all(math.isfinite(x) for x in value):
+        raise CaseError(f"{where}: expected finite numbers, got {value!r}")
+    return [float(x) for x in value]
+
+
+_PATCH_FORM = "{value = [tx, ty], x = [x0, x1]} (and/or y = [y0, y1])"
+
+
+def _traction(value, where):
+    """[tx, ty] (the whole piece), a windowed traction {value, x, y}, or a list of these."""
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - {"value", "x", "y"})
+        if unknown or "value" not in value or not ({"x", "y"} & set(value)):
+            raise CaseError(f"{where}: a windowed traction is {_PATCH_FORM}, got keys {sorted(value)}")
+        out = {"value": _vec2(value["value"], f"{where}.value")}
+        for key in ("x", "y"):
+            if key in value:
+                lo, hi = _vec2(value[key], f"{where}.{key}")
+                if not lo < hi:
+                    raise CaseError(f"{where}.{key}: expected an interval [lo, hi] with lo < hi, got {value[key]!r}")
+                out[key] = [lo, hi]
+        return out
+    if isinstance(value, list) and value and all(isinstance(v, (dict, list)) for v in value):
+        return [_traction(v, f"{where}[{k}]") for k, v in enumerate(value)]
+    return _vec2(value, where)
+
+
+def _check_value(typ, value, where):
+    """Normalised value or CaseError naming ``where`` (e.g. "[contact] friction"), the expected type and the got."""
+    bad = CaseError(f"{where}: expected {TYPE_NAMES[typ]}, got {_tname(value)} {value!r}")
+    if typ == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad
+        return value
+    if typ == "float":
+        if not _is_number(value):
+            raise bad
+        if not math.isfinite(value):
+            raise CaseError(f"{where}: expected a finite number, got {value!r}")
+        return float(value)
+    if typ == "str":
+        if not isinstance(value, str):
+            raise bad
+        return value
+    if typ == "bool":
+        if not isinstance(value, bool):
+            raise bad
+        return value
+    if typ == "tags":
+        if isinstance(value, (str, int)) and not isinstance(value, bool):
+            value = [value]
+        if not isinstance(value, list) or not all(isinstance(t, (str, int)) and not isinstance(t, bool) for t in value):
+            raise bad
+        return list(value)
+    if typ == "material":
+        if isinstance(value, dict):
+            if not value:
+                raise bad
+            return {k: _check_value("float", v, f"{where}.{k}") for k, v in value.items()}
+        return _check_value("float", value, where)
+    if typ == "tractions":
+        if not isinstance(value, dict):
+            raise bad
+        return {k: _traction(v, f"{where}.{k}") for k, v in value.items()}
+    if typ == "body_force":
+        if isinstance(value, dict):
+            return {k: _vec2(v, f"{where}.{k}") for k, v in value.items()}
+        if isinstance(value, list):
+            return _vec2(value, where)
+        raise bad
+    if typ == "formats":
+        if not isinstance(value, list) or not all(isinstance(f, str) for f in value):
+            raise bad
+        fmts = [f.lower().lstrip(".") for f in value]
+        unknown = [f for f, g in zip(value, fmts) if g not in ("png", "pdf")]
+        if unknown:
+            raise CaseError(f"{where}: unknown format(s) {unknown}; valid: \"png\", \"pdf\"")
+        return fmts
+    if typ == "component":
+        return parse_component(value, where)
+    if typ == "zoom":
+        if not (isinstance(value, list) and len(value) in (2, 4) and all(_is_number(x) for x in value)):
+            raise bad
+        if not value[0] < value[1] or (len(value) == 4 and not value[2] < value[3]):
+            raise CaseError(f"{where}: need alpha_lo < alpha_hi (and v_lo < v_hi), got {value!r}")
+        return [float(x) for x in value]
+    if typ == "window":
+        if not (isinstance(value, list) and len(value) == 2 and all(isinstance(x, int) and not isinstance(x, bool)
+                                                                   for x in value)):
+            raise bad
+        if min(value) < 16 or max(value) > 10000:
+            raise CaseError(f"{where}: width and height must be 16..10000 pixels, got {value!r}")
+        return list(value)
+    if typ == "friction":
+        if _is_number(value):
+            vals = [value]
+        elif isinstance(value, list) and value and all(_is_number(x) for x in value):
+            vals = value
+        else:
+            raise bad
+        if not all(math.isfinite(x) and x >= 0 for x in vals):
+            raise CaseError(f"{where}: the friction coefficient must be >= 0 (and finite), got {value!r}")
+        return float(value) if _is_number(value) else [float(x) for x in value]
+    raise AssertionError(typ)
+
+
+def parse_component(value, where):
+    """("lam_n", 12) / "lam_n:12" / 57 -> ("lam_n", 12) or 57."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        if value < 0:
+            raise CaseError(f"{where}: an index of y must be >= 0, got {value}")
+        return value
+    if isinstance(value, str):
+        name, sep, idx = value.partition(":")
+        if not sep:
+            try:
+                return parse_component(int(value), where)
+            except ValueError:
+                pass
+        try:
+            value = [name.strip(), int(idx)]
+        except ValueError:
+            raise CaseError(f"{where}: expected \"NAME:INDEX\" (NAME one of {', '.join(COMPONENT_NAMES)}) or an "
+                            f"integer, got {value!r}") from None
+    if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], str)
+            and isinstance(value[1], int) and not isinstance(value[1], bool)):
+        raise CaseError(f"{where}: expected {TYPE_NAMES['component']}, got {_tname(value)} {value!r}")
+    if value[0] not in COMPONENT_NAMES:
+        raise CaseError(f"{where}: unknown component {value[0]!r}; valid: {', '.join(COMPONENT_NAMES)}")
+    if value[1] < 0:
+        raise CaseError(f"{where}: the index must be >= 0, got {value[1]}")
+    return (value[0], value[1])
+
+
+def _check_section(name, table, keys, label=None):
+    label = label or f"[{name}]"
+    if not isinstance(table, dict):
+        raise CaseError(f"{label}: expected a table, got {_tname(table)} {table!r}")
+    unknown = sorted(set(table) - set(keys))
+    if unknown:
+        raise CaseError(f"unknown key {unknown[0]!r} in {label}; valid keys: {', '.join(keys)}")
+    out = {}
+    for key, spec in keys.items():
+        if key in table:
+            out[key] = _check_value(spec.kind, table[key], f"{label} {key}")
+        elif spec.default is not None:
+            out[key] = copy.deepcopy(spec.default)  # (a list default must not be shared with the schema)
+    return out
+
+
+def _file_sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _geometry_script(kind):
+    """The gmsh script module of a built-in kind (imports gmsh)."""
+    from cfcontact.meshes import arc_on_block, two_blocks
+
+    return arc_on_block if kind == "arc" else two_blocks
+
+
+# ------------------------------------------------------------------ validation
+def validate_case(raw: dict, base_dir: str = ".") -> dict:
+    """Check a parsed case file completely; returns the normalised case (CaseError on the first problem).
+
+    Tags are checked against the model's physical groups (built-in kinds: their script's groups;
+    "msh": the groups read from the file).  The [path] section is checked by the library's own
+    validation (:class:`~cfcontact.options.PathOptions`, :class:`~cfcontact.options.AlphaSpan`),
+    whose results :func:`path_request` returns.
+    """
+    if not isinstance(raw, dict):
+        raise CaseError("the case file must be a TOML table")
+    unknown = sorted(set(raw) - set(TOP_LEVEL))
+    if unknown:
+        raise CaseError(f"unknown section or key {unknown[0]!r} at the top level; valid: {', '.join(TOP_LEVEL)}")
+    case = {}
+    if "title" in raw:
+        case["title"] = _check_value("str", raw["title"], "title")
+    case["geometry"] = geometry = _validate_geometry(raw.get("geometry"), base_dir)
+    case["material"] = material = _validate_material(raw.get("material", {}))
+    contact = _check_section("contact", raw.get("contact", {}), SCHEMA["contact"])
+    if "rho" in contact and not contact["rho"] > 0:
+        raise CaseError(f"[contact] rho: must be > 0, got {contact['rho']!r}")
+    case["contact"] = contact
+    case["loads"] = _validate_loads(raw.get("loads", {}), geometry, material)
+    case["path"], case["_request"] = _validate_path(raw.get("path", {}))
+    output = _check_section("output", raw.get("output", {}), SCHEMA["output"])
+    if output["animation_format"] not in ("gif", "mp4", "frames"):
+        raise CaseError(f"[output] animation_format: expected \"gif\", \"mp4\" or \"frames\", "
+                        f"got {output['animation_format']!r}")
+    if output["animation_frames"] < 1:
+        raise CaseError(f"[output] animation_frames: must be >= 1, got {output['animation_frames']}")
+    if "magnification" in output and not output["magnification"] > 0:
+        raise CaseError(f"[output] magnification: must be > 0, got {output['magnification']!r}")
+    case["output"] = output
+    return case
+
+
+def _validate_geometry(geo, base_dir):
+    if geo is None:
+        raise CaseError(f"missing section [geometry] (with kind = one of {', '.join(map(repr, GEOMETRY_KINDS))})")
+    if not isinstance(geo, dict):
+        raise CaseError(f"[geometry]: expected a table, got {_tname(geo)} {geo!r}")
+    if "kind" not in geo:
+        raise CaseError(f"[geometry] kind is missing; valid kinds: {', '.join(map(repr, GEOMETRY_KINDS))}")
+    kind = _check_value("str", geo["kind"], "[geometry] kind")
+    if kind not in GEOMETRY_KINDS:
+        raise CaseError(f"[geometry] kind: unknown geometry kind {kind!r}; valid kinds: "
+                        f"{', '.join(map(repr, GEOMETRY_KINDS))}")
+    geometry = _check_section("geometry", geo, geometry_keys(kind), f"[geometry] (kind = {kind!r})")
+    if kind == "msh":
+        if "file" not in geometry:
+            raise CaseError("[geometry] file is missing: kind = 'msh' needs file = \"model.msh\" "
+                            "(relative to the case file)")
+        geometry["file"] = os.path.normpath(os.path.join(base_dir, geometry["file"]))
+        if not os.path.isfile(geometry["file"]):
+            raise CaseError(f"[geometry] file: no such mesh file {geometry['file']!r}")
+        geometry["sha256"] = _file_sha256(geometry["file"])
+        return geometry
+    if kind == "inclined" and "angle" not in geometry:
+        raise CaseError("[geometry] angle is missing: kind = 'inclined' needs the angle in degrees")
+    try:
+        _geometry_script(kind).check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
+    except (InputError, ValueError) as exc:
+        raise CaseError(f"[geometry] {exc}") from None
+    return geometry
+
+
+def _validate_material(table):
+    material = _check_section("material", table, SCHEMA["material"])
+    if "plane" in material and material["plane"] not in PLANES:
+        raise CaseError(f"[material] plane: expected \"strain\" or \"stress\", got {material['plane']!r}")
+    for key, check in (("E", check_modulus), ("nu", check_poisson)):
+        value = material.get(key)
+        for body, v in (value.items() if isinstance(value, dict) else [(None, value)]):
+            if v is None:
+                continue
+            try:
+                check(v)
+            except InputError as exc:
+                raise CaseError(f"[material] {key}{'' if body is None else '.' + body}: {exc}") from None
+    return material
+
+
+def _validate_loads(table, geometry, material):
+    kind = geometry["kind"]
+    loads = _check_section("loads", table, SCHEMA["loads"])
+    if kind == "msh":
+        for key in ("clamp", "f1", "f2"):
+            if key not in loads:
+                what = "clamp = [tags]" if key == "clamp" else f"a table [loads.{key}] (may be empty)"
+                raise CaseError(f"[loads] {key} is missing: kind = 'msh' needs {what}")
+    groups = _model_groups(kind, geometry)
+    for key in ("clamp", "f1", "f2", "body_force1", "body_force2"):
+        if key not in loads:
+            continue
+        val = loads[key]
+        label = f"[loads] {key}" if key in ("clamp",) or not isinstance(val, dict) else f"[loads.{key}]"
+        if key == "clamp":
+            for t in val:
+                _check_tag(t, groups, 1, label)
+        elif isinstance(val, dict):
+            for t in val:
+                _check_tag(t, groups, 2 if key.startswith("body") else 1, label)
+    for key in ("E", "nu"):  # per-body material: one value for each body of the model
+        if isinstance(material.get(key), dict):
+            for t in material[key]:
+                _check_tag(t, groups, 2, f"[material] {key}")
+            named = {_body_number(t, groups) for t in material[key]}
+            missing = [name for (dim, num), name in sorted(groups.items()) if dim == 2 and num not in named]
+            if missing:
+                raise CaseError(f"[material] {key}: no value for body {', '.join(missing)}; give one number "
+                                f"per body or a single number")
+    return loads
+
+
+def _validate_path(table):
+    """(normalised [path] section, (PathOptions, AlphaSpan)), both checked by the library's rules."""
+    path = _check_section("path", table, SCHEMA["path"])
+    if path["method"] not in METHODS:
+        raise CaseError(f"[path] method: unknown method {path['method']!r}; valid: {', '.join(map(repr, METHODS))}")
+    if path["backend"] not in BACKENDS:
+        raise CaseError(f"[path] backend: unknown backend {path['backend']!r}; valid: {', '.join(map(repr, BACKENDS))}")
+    try:
+        options = PathOptions(**{k: v for k, v in path.items() if k in PathOptions.names()})
+        span = AlphaSpan.of(path["alpha_start"], path["alpha_end"], options)
+    except InputError as exc:
+        raise CaseError(f"[path] {exc}") from None
+    return path, (options, span)
+
+
+def path_request(case) -> tuple:
+    """(PathOptions, AlphaSpan) of a validated case: its [path] section, validated once."""
+    return case["_request"]
+
+
+def _model_groups(kind, geometry) -> dict:
+    """{(dim, number): name} of the physical groups of the case's model."""
+    if kind != "msh":
+        tags = _geometry_script(kind).TAGS
+        foundation = kind == "block_on_foundation"
+        return {(d, n): name for name, (d, n) in tags.items() if not (foundation and (n == 2 or 20 <= n < 30))}
+    import gmsh
+
+    from cfcontact import compat
+
+    with compat.gmsh_model("cfcontact-cli-probe") as model:
+        try:
+            gmsh.merge(geometry["file"])
+        except Exception as exc:
+            raise CaseError(f"[geometry] file: gmsh cannot read {geometry['file']!r}: {exc}") from None
+        return {(int(d), int(n)): model.getPhysicalName(d, n) for d, n in model.getPhysicalGroups()}
+
+
+def _check_tag(tag, groups, dim, label):
+    names = {name for (d, _), name in groups.items() if d == dim and name}
+    numbers = {n for (d, n) in groups if d == dim}
+    if (isinstance(tag, str) and tag in names) or (isinstance(tag, int) and tag in numbers):
+        return
+    if isinstance(tag, str) and tag.isdigit() and int(tag) in numbers:  # TOML table keys are strings
+        return
+    kind = "boundary tag (1-D physical group)" if dim == 1 else "body tag (2-D physical group)"
+    valid = ", ".join(f"{name}={n}" if name else str(n) for (d, n), name in sorted(groups.items()) if d == dim)
+    raise CaseError(f"{label}: unknown {kind} {tag!r}; valid: {valid or '(none)'}")
+
+
+def _body_number(tag, groups):
+    """The number of a (checked) body tag: a name, a number or a digit string."""
+    if isinstance(tag, str) and not tag.isdigit():
+        return next(n for (d, n), name in groups.items() if d == 2 and name == tag)
+    return int(tag)
+
+
+def load_case(filename) -> dict:
+    """Read and validate a TOML case file; returns the normalised case with its text and location."""
+    filename = os.fspath(filename)
+    if not os.path.isfile(filename):
+        raise CaseError(f"no such case file: {filename!r}")
+    with open(filename, "rb") as fh:
+        data = fh.read()
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"{filename}: not UTF-8 text ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"{filename}: invalid TOML: {exc}") from None
+    case = validate_case(raw, os.path.dirname(os.path.abspath(filename)))
+    case["_file"] = os.path.abspath(filename)
+    case["_text"] = data.decode("utf-8")
+    return case
+
+
+def physics(case) -> dict:
+    """The sections that determine the path (a resumed run must have the same), as plain JSON data."""
+    return json.loads(json.dumps({k: case.get(k) for k in PHYSICS_SECTIONS}))
+
+
+# ------------------------------------------------------------------ model building
+def build_system(case):
+    """The ContactSystem of a validated case (imports the FEM layer)."""
+    geo, mat, con, loads = case["geometry"], case["material"], case["contact"], case["loads"]
+    common = {k: ({_tag_value(t): x for t, x in v.items()} if isinstance(v, dict) else v) for k, v in mat.items()}
+    common["friction"] = con["friction"]
+    if "rho" in con:
+        common["rho"] = con["rho"]
+    if "clamp" in loads:
+        common["clamp"] = [_tag_value(t) for t in loads["clamp"]]
+    for key, arg in (("f1", "tractions1"), ("f2", "tractions2")):
+        if key in loads:
+            common[arg] = {_tag_value(t): v for t, v in loads[key].items()}
+    for key in ("body_force1", "body_force2"):
+        if key in loads:
+            v = loads[key]
+            common[key] = {_tag_value(t): w for t, w in v.items()} if isinstance(v, dict) else v
+    if geo["kind"] == "msh":
+        from cfcontact.assembly import assemble_contact_system
+
+        return assemble_contact_system(geo["file"], info={"model": "msh", "file": geo["file"]}, **common)
+    from cfcontact.models import arc_on_block, two_blocks
+
+    params = {k: v for k, v in geo.items() if k != "kind"}
+    if geo["kind"] == "arc":
+        return arc_on_block(**params, **common)
+    return two_blocks(foundation=geo["kind"] == "block_on_foundation", **params, **common)
+
+
+def _tag_value(tag):
+    return int(tag) if isinstance(tag, str) and tag.isdigit() else tag
+
+
+# ------------------------------------------------------------------ reference
+def _section_text(header, keys, commented=False) -> list:
+    """``header`` and one line per key: ``key = example  # doc`` (commented out without an
+    example); ``commented``: every line commented out (an alternative form of a section)."""
+    rows = []
+    for name, key in keys.items():
+        code = f"{name} = {key.example}" if key.example is not None else f"# {name}"
+        rows.append(("# " + code.lstrip("# ") if commented else code, key.doc))
+    width = max(len(code) for code, _ in rows)
+    return [header, *(f"{code:<{width}}  # {doc}" if doc else code for code, doc in rows)]
+
+
+def _with_defaults(keys, defaults) -> dict:
+    """``keys`` with "(default X)" added to the doc of every key that has a default in ``defaults``
+    (the DEFAULTS of a geometry script)."""
+    return {name: Key(k.kind, k.default, k.example, f"{k.doc} (default {_toml(defaults[name])})")
+            if defaults.get(name) is not None else k for name, k in keys.items()}
+
+
+def reference_text() -> str:
+    """The case-file reference (annotated TOML, itself a valid case file), rendered from :data:`SCHEMA`
+    and the defaults of the geometry scripts (imports gmsh)."""
+    blocks, arc = _geometry_script("two_blocks").DEFAULTS, _geometry_script("arc").DEFAULTS
+    parts = [
+        ["# Every section and key is optional except [geometry] kind (and the keys named 'required').",
+         "title = \"optional free text\"  # the title of plots and animations"],
+        _section_text("[geometry]  # kind = \"two_blocks\", \"block_on_foundation\" or \"inclined\"",
+                      _with_defaults(BLOCK_GEOMETRY, blocks)),
+        _section_text("# [geometry]  # kind = \"arc\" instead (cfcontact.arc_on_block)",
+                      _with_defaults(ARC_GEOMETRY, arc), True),
+        _section_text("# [geometry]  # kind = \"msh\" instead: both keys required", MSH_GEOMETRY, True),
+    ]
+    for name in ("material", "contact"):
+        parts.append(_section_text(f"[{name}]", SCHEMA[name]))
+    loads = {k: v for k, v in SCHEMA["loads"].items() if k not in ("f1", "f2")}
+    parts.append(_section_text("[loads]  # required for kind = \"msh\": clamp, [loads.f1], [loads.f2]", loads))
+    for key in ("f1", "f2"):
+        spec = SCHEMA["loads"][key]
+        tag, value = spec.example.strip("{}").split(" = ")
+        parts.append(_section_text(f"[loads.{key}]  # {spec.doc}", {tag: Key("tractions", None, value)}))
+    parts[-1] += ["# a traction on a window of a piece (mesh coordinates), or a list of tractions (summed):",
+                  "#   bottom2 = {value = [7.0e2, 0.0], x = [2.5, 2.6]}",
+                  "#   top1 = [[0.0, -1.0e6], {value = [0.0, 4.0e5], x = [2.2, 2.3]}]",
+                  "#   right1 = {value = [1.0e6, 0.0], y = [0.5, 1.0]}"]
+    for name in ("path", "output"):
+        parts.append(_section_text(f"[{name}]", SCHEMA[name]))
+    return "\n\n".join("\n".join(p) for p in parts) + "\n"

@@ -1,0 +1,39 @@
+"""JSON helpers shared by the saved path, checkpoints, reports and output files."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+
+def jsonable(obj, strict: bool = True):
+    """``obj`` with NumPy scalars and arrays turned into Python numbers and lists, tuples into
+    lists and dict keys into strings.  ``strict``: non-finite floats become None (RFC 8259 JSON);
+    otherwise they stay (Python's json writes NaN / Infinity)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v, strict) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v, strict) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist(), strict)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if (math.isfinite(obj) or not strict) else None
+    return obj
+
+
+def write_json(filename, obj, strict: bool = True) -> None:
+    """Write ``jsonable(obj, strict)`` to ``filename`` (indent 1)."""
+    with open(os.fspath(filename), "w") as fh:
+        json.dump(jsonable(obj, strict), fh, indent=1)
+
+
+def read_json(filename):
+    with open(os.fspath(filename)) as fh:
+        return json.load(fh)

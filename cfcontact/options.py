@@ -1,0 +1,145 @@
+"""Options of the path-following layer, validated once where a path is asked for.
+
+:class:`PathOptions` is a frozen dataclass: constructing it (also through
+:func:`dataclasses.replace`) validates it, so the steppers take it as it is.  The callback is
+not an option: :func:`cfcontact.path.trace_path` takes it separately.  :class:`AlphaSpan` is
+the validated alpha range of one path.  Every field's metadata (``kind``, ``doc``,
+``methods``) generates the ``[path]`` section of the case-file schema
+(:mod:`cfcontact.case`).
+
+Nothing here imports PETSc or dolfinx.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Optional
+
+from cfcontact.errors import InputError
+
+#: Path-following methods (:func:`cfcontact.path.trace_path`).
+METHODS = ("seed", "exact")
+#: DirNeu backends (:func:`cfcontact.path.select_solver`).
+BACKENDS = ("auto", "full", "condensed")
+#: Default relative tolerance deciding that an indicator "vanishes" (relative to the largest
+#: indicator magnitude of the branch) or that a slope is zero (the exact method).
+TIE_RTOL = 1e-10
+
+
+def _option(default, kind, doc, methods=METHODS):
+    """A dataclass field with its case-file type (``kind``), a one-line doc and the methods using it."""
+    return field(default=default, metadata={"kind": kind, "doc": doc, "methods": tuple(methods)})
+
+
+@dataclass(frozen=True)
+class PathOptions:
+    """Options of the path-following layer (seed defaults, its Figure 6); validated on construction.
+
+    h_min, h_max, c_p, c_s: step-size range and prolongation / shortening rates (seed).
+    h0: initial step (seed).  max_steps, max_transitions: caps (the run stops with that status).
+    alpha_min, alpha_max: the path stops when alpha leaves [alpha_min, alpha_max]
+        (default: the interval between alpha_start and alpha_end).
+    tol, max_iter: SSNM options for the start point.
+    tie_rtol: relative tolerance under which an indicator counts as zero (exact).
+    """
+
+    h_min: float = _option(1e-5, "float", "smallest step; a failure at h_min is a transition", ("seed",))
+    h_max: float = _option(5.0, "float", "largest step", ("seed",))
+    c_p: float = _option(1.3, "float", "step prolongation factor after an accepted step (> 1)", ("seed",))
+    c_s: float = _option(0.5, "float", "step shortening factor after a rejected step (in (0, 1))", ("seed",))
+    h0: float = _option(1e-2, "float", "initial step", ("seed",))
+    max_steps: int = _option(200000, "int", "step cap (status max_steps)", ("seed",))
+    max_transitions: int = _option(10000, "int", "transition cap (status max_transitions)")
+    alpha_min: Optional[float] = _option(None, "float", "stop when alpha < alpha_min (default: min(start, end))")
+    alpha_max: Optional[float] = _option(None, "float", "stop when alpha > alpha_max (default: max(start, end))")
+    tol: float = _option(1e-9, "float", "SSNM tolerance of the start point")
+    max_iter: int = _option(100, "int", "SSNM iterations of the start point")
+    tie_rtol: float = _option(TIE_RTOL, "float", "indicator values below tie_rtol x their scale vanish, in "
+                                                 "(0, 1e-2)", ("exact",))
+
+    def __post_init__(self):
+        bad = []
+        if not (0 < self.h_min <= self.h_max):
+            bad.append(f"need 0 < h_min <= h_max, got h_min={self.h_min}, h_max={self.h_max}")
+        if not (self.c_p > 1):
+            bad.append(f"need c_p > 1, got {self.c_p}")
+        if not (0 < self.c_s < 1):
+            bad.append(f"need 0 < c_s < 1, got {self.c_s}")
+        if not (self.h0 > 0):
+            bad.append(f"need h0 > 0, got {self.h0}")
+        if int(self.max_steps) < 1 or int(self.max_transitions) < 0:
+            bad.append(f"need max_steps >= 1 and max_transitions >= 0, got {self.max_steps}, {self.max_transitions}")
+        if not (0 < self.tie_rtol < 1e-2):
+            bad.append(f"tie_rtol must be in (0, 1e-2), got {self.tie_rtol!r}")
+        if bad:
+            raise InputError("invalid path options: " + "; ".join(bad))
+
+    @classmethod
+    def names(cls) -> tuple:
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def with_overrides(cls, options: Optional["PathOptions"] = None, **overrides) -> "PathOptions":
+        """``options`` (default: the defaults) with some fields replaced; InputError names unknown fields."""
+        if options is not None and not isinstance(options, cls):
+            raise InputError(f"options must be PathOptions, got {type(options).__name__}")
+        unknown = sorted(set(overrides) - set(cls.names()))
+        if unknown:
+            raise InputError(f"unknown path option(s) {unknown}; valid: {sorted(cls.names())}")
+        if options is None:
+            return cls(**overrides)
+        return cls(**{**options.to_dict(), **overrides}) if overrides else options
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PathOptions":
+        """The options of a saved path (its ``options`` dict; keys of other versions are ignored)."""
+        return cls(**{k: v for k, v in d.items() if k in cls.names()})
+
+
+@dataclass(frozen=True)
+class AlphaSpan:
+    """The alpha range of one path: from ``start`` towards ``end``, stopping outside [lo, hi]."""
+
+    start: float
+    end: float
+    lo: float
+    hi: float
+
+    @classmethod
+    def of(cls, alpha_start, alpha_end, options: PathOptions) -> "AlphaSpan":
+        """Validated span (InputError for an empty range or a start outside [alpha_min, alpha_max])."""
+        try:
+            a0, a1 = float(alpha_start), float(alpha_end)
+        except (TypeError, ValueError):
+            raise InputError(f"alpha_start and alpha_end must be numbers, got {alpha_start!r}, {alpha_end!r}") from None
+        if not (math.isfinite(a0) and math.isfinite(a1)) or a0 == a1:
+            raise InputError(f"alpha range is empty: alpha_start={alpha_start}, alpha_end={alpha_end} "
+                             f"(need two different finite numbers)")
+        lo = min(a0, a1) if options.alpha_min is None else float(options.alpha_min)
+        hi = max(a0, a1) if options.alpha_max is None else float(options.alpha_max)
+        if not lo < hi:
+            raise InputError(f"alpha range is empty: [alpha_min, alpha_max] = [{lo}, {hi}]")
+        if not (lo <= a0 <= hi):
+            raise InputError(f"alpha_start={alpha_start} lies outside [alpha_min, alpha_max] = [{lo}, {hi}]")
+        return cls(a0, a1, lo, hi)
+
+    @property
+    def direction(self) -> int:
+        """+1 when the path runs towards larger alpha, else -1."""
+        return 1 if self.end > self.start else -1
+
+
+def check_method(method) -> str:
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; valid: {', '.join(map(repr, METHODS))}")
+    return method
+
+
+def check_backend(backend) -> str:
+    if backend not in BACKENDS:
+        raise InputError(f"unknown backend {backend!r}; valid: {', '.join(map(repr, BACKENDS))}")
+    return backend

@@ -1,0 +1,467 @@
+"""Running a case file: the runner, checkpoints and the output folder.
+
+A run (:class:`CaseRun`) works in ``<out>.partial/`` and renames it to ``<out>/`` only when
+everything is written, so ``<out>/`` is always complete.  While the path is traced, the
+:class:`Runner` (the stepper's callback, :mod:`cfcontact.stepper`) shows progress, checks the
+stop conditions (:class:`StopConditions`) and asks for a checkpoint ``<out>.partial/checkpoint/``
+(``path/`` = the live path, ``state.json`` = the method's resume state and the physics sections
+of the case) every ``checkpoint_every`` seconds: a save, the run goes on.  A stop condition (or
+an interrupt) stops the run at an accepted point, saves the checkpoint and raises
+:class:`Stopped`; ``CaseRun(..., resume=True)`` continues from the checkpoint and the result
+equals an uninterrupted run.
+
+Library code: nothing here prints; progress goes to a display object (``update(text, force)``,
+``clear()``, ``done()``) and warnings to a callable, both given by the caller (the command line).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import time
+import tomllib
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+from cfcontact.case import CaseError, build_system, path_request, physics
+from cfcontact.errors import InputError
+from cfcontact.jsonio import read_json, write_json
+from cfcontact.material import DEFAULT_MATERIAL
+from cfcontact.path import path_stepper, select_solver
+from cfcontact.report import path_report
+from cfcontact.solution_path import SolutionPath, component_index
+from cfcontact.stepper import CHECKPOINT
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "save_checkpoint", "load_checkpoint", "has_checkpoint",
+           "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "RUN_FORMAT",
+           "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
+
+RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
+DEFAULT_CHECKPOINT_EVERY = 60.0
+#: Folders of a checkpoint inside ``<out>.partial/`` (the second one during a swap).
+CHECKPOINT_DIRS = ("checkpoint", ".checkpoint-old")
+
+
+class Stopped(Exception):
+    """The run was stopped before its end; a checkpoint was written (``resumable``: with a resume state)."""
+
+    def __init__(self, reason, interrupted=False, resumable=True):
+        super().__init__(reason)
+        self.reason, self.interrupted, self.resumable = reason, interrupted, resumable
+
+
+@dataclass(frozen=True)
+class StopConditions:
+    """When a run stops early (resumably) and how often it saves a checkpoint.
+
+    time_limit: seconds since the runner started; stop_after_folds / stop_after_transitions:
+    totals along the whole path (a condition already met when resuming is not triggered again);
+    stop_at_alpha: the first accepted point at or beyond it; checkpoint_every: seconds between
+    checkpoints (0: only when stopping)."""
+
+    time_limit: Optional[float] = None
+    stop_after_folds: Optional[int] = None
+    stop_after_transitions: Optional[int] = None
+    stop_at_alpha: Optional[float] = None
+    checkpoint_every: float = DEFAULT_CHECKPOINT_EVERY
+
+    def __post_init__(self):
+        for name in ("stop_after_folds", "stop_after_transitions"):
+            v = getattr(self, name)
+            if v is not None and v < 1:
+                raise CaseError(f"{name} must be >= 1, got {v}")
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise CaseError(f"time_limit must be > 0 seconds, got {self.time_limit}")
+        if not self.checkpoint_every >= 0:
+            raise CaseError(f"checkpoint_every must be >= 0 seconds, got {self.checkpoint_every}")
+
+
+class _NoDisplay:
+    def update(self, text, force=False):
+        pass
+
+    def clear(self):
+        pass
+
+    def done(self):
+        pass
+
+
+class Runner:
+    """The callback of a traced case: progress line, stop conditions, checkpoint timing.
+
+    :meth:`on_point` answers None (go on), :data:`~cfcontact.stepper.CHECKPOINT` (save and go on)
+    or the reason to stop (a string).  :meth:`interrupt` (e.g. from a SIGINT handler) stops the
+    run at the next accepted point."""
+
+    def __init__(self, stops: StopConditions, display=None, t_start: Optional[float] = None):
+        self.stops = stops
+        self.display = display if display is not None else _NoDisplay()
+        self.t_start = time.monotonic() if t_start is None else t_start
+        self.interrupted = False
+        self.reason = None
+        self.solver = None
+
+    def interrupt(self):
+        self.interrupted = True
+
+    def begin(self, solver, resumed_path: Optional[SolutionPath] = None):
+        """Start counting: the solver's work from now on, the counts of a resumed path."""
+        self.solver = solver
+        self.solves0 = solver.stats.linear_solves
+        self.solves_before = int(resumed_path.stats.get("linear_solves", 0)) if resumed_path is not None else 0
+        # counts already reached when (re)starting: a condition already met is not triggered again
+        self.folds0 = len(resumed_path.folds) if resumed_path is not None else 0
+        self.trans0 = len(resumed_path.transitions) if resumed_path is not None else 0
+        self.prev_alpha = float(resumed_path.alphas[-1]) if resumed_path is not None else None
+        self.last_checkpoint = time.monotonic()
+        self.points = 0
+
+    def status_line(self, alpha, branches, transitions, folds):
+        solves = self.solves_before + self.solver.stats.linear_solves - self.solves0
+        return (f"alpha={alpha:.8g}  branches {branches}  transitions {transitions}  folds {folds}  "
+                f"linear solves {solves}  "
+                f"{time.monotonic() - self.t_start:.1f} s")
+
+    def on_point(self, pt):
+        self.points += 1
+        path = pt.path  # the live path
+        folds, transitions, branches = len(path.folds), len(path.transitions), len(path.branches)
+        self.display.update(self.status_line(pt.alpha, branches, transitions, folds))
+        stops = self.stops
+        prev, self.prev_alpha = self.prev_alpha, float(pt.alpha)
+        if self.interrupted:
+            self.reason = "interrupted (Ctrl-C)"
+        elif stops.time_limit is not None and time.monotonic() - self.t_start >= stops.time_limit:
+            self.reason = f"time limit of {stops.time_limit:g} s reached"
+        elif stops.stop_after_folds is not None \
+                and folds > self.folds0 and folds >= stops.stop_after_folds:
+            self.reason = f"stopped after {folds} fold(s)"
+        elif stops.stop_after_transitions is not None and transitions > self.trans0 \
+                and transitions >= stops.stop_after_transitions:
+            self.reason = f"stopped after {transitions} transition(s)"
+        elif stops.stop_at_alpha is not None and prev is not None \
+                and (pt.alpha - stops.stop_at_alpha) * (prev - stops.stop_at_alpha) <= 0 and pt.alpha != prev:
+            self.reason = f"stopped at alpha={pt.alpha:.8g} (reached {stops.stop_at_alpha:g})"
+        elif stops.checkpoint_every and time.monotonic() - self.last_checkpoint >= stops.checkpoint_every:
+            return CHECKPOINT
+        return self.reason
+
+    def checkpoint_saved(self):
+        self.last_checkpoint = time.monotonic()
+
+    def end(self, path):
+        """The final progress line."""
+        self.display.update(self.status_line(path.alphas[-1], len(path.branches), len(path.transitions),
+                                             len(path.folds)), force=True)
+        self.display.done()
+
+
+# ============================================================ checkpoints
+def save_checkpoint(partial, path, case, reason, resume_state):
+    """Write ``<partial>/checkpoint/`` (path/ + state.json) atomically."""
+    final = os.path.join(partial, CHECKPOINT_DIRS[0])
+    tmp = os.path.join(partial, ".checkpoint-new")
+    shutil.rmtree(tmp, ignore_errors=True)
+    os.makedirs(tmp)
+    path.save(os.path.join(tmp, "path"))
+    state = {"format": CHECKPOINT_FORMAT, "version": 1, "reason": reason, "time": time.time(),
+             "method": path.method, "resumable": resume_state is not None,
+             "resume_state": resume_state, "physics": physics(case),
+             "case_file": case["_file"], "summary": path.summary()}
+    write_json(os.path.join(tmp, "state.json"), state)
+    old = os.path.join(partial, CHECKPOINT_DIRS[1])
+    shutil.rmtree(old, ignore_errors=True)
+    if os.path.isdir(final):
+        os.rename(final, old)
+    os.rename(tmp, final)
+    shutil.rmtree(old, ignore_errors=True)
+    log.info("checkpoint written to %s (%s)", final, reason)
+    return final
+
+
+def load_checkpoint(partial):
+    """(state dict, SolutionPath) of ``<partial>/checkpoint`` (or the old one of an interrupted swap)."""
+    for name in CHECKPOINT_DIRS:
+        ck = os.path.join(partial, name)
+        if os.path.isfile(os.path.join(ck, "state.json")) and os.path.isdir(os.path.join(ck, "path")):
+            state = read_json(os.path.join(ck, "state.json"))
+            if state.get("format") != CHECKPOINT_FORMAT:
+                raise CaseError(f"{ck}: not a cfcontact checkpoint")
+            return state, SolutionPath.load(os.path.join(ck, "path"))
+    raise CaseError(f"no checkpoint to resume from in {partial!r} (run without --resume)")
+
+
+def has_checkpoint(partial) -> bool:
+    return any(os.path.isfile(os.path.join(partial, n, "state.json")) for n in CHECKPOINT_DIRS)
+
+
+# ============================================================ outputs
+def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, system=None):
+    """Plots, renders, the saved path and summary.json into ``outdir``; returns the files written."""
+    out = case["output"]
+    files = []
+    t = time.perf_counter()
+    path.save(os.path.join(outdir, "path"))
+    files.append("path/")
+    with open(os.path.join(outdir, "case.toml"), "w") as fh:
+        fh.write(case["_text"])
+    files.append("case.toml")
+    timings["save"] = time.perf_counter() - t
+    component = out.get("component")
+    if component is not None:
+        path.component_index(component)  # range check (InputError)
+    if out["plot"] and len(path.alphas):
+        t = time.perf_counter()
+        from cfcontact.plotting import plot_multiplicity, plot_path, save_figure
+
+        fig = plot_path(path, component=component, zoom=out.get("zoom"),
+                        title=case.get("title"))
+        for fmt in out["plot_formats"]:
+            save_figure(fig, os.path.join(outdir, f"path.{fmt}"))
+            files.append(f"path.{fmt}")
+        if path.multiplicity_intervals():
+            fig = plot_multiplicity(path)
+            for fmt in out["plot_formats"]:
+                save_figure(fig, os.path.join(outdir, f"multiplicity.{fmt}"))
+                files.append(f"multiplicity.{fmt}")
+        timings["plot"] = time.perf_counter() - t
+    if (out["render_panel"] or out["render_animation"] or out["xdmf"]) and path.geometry is None:
+        warn("the path has no geometry; no renders" + (" and no XDMF file" if out["xdmf"] else ""))
+    elif out["render_panel"] or out["render_animation"] or out["xdmf"]:
+        t = time.perf_counter()
+        files += _write_pictures(path, case, outdir, warn)
+        timings["render"] = time.perf_counter() - t
+    summary = {"format": RUN_FORMAT, "version": 1, "case_file": case["_file"], "title": case.get("title"),
+               "summary": path.summary(), **path_report(path), "timings": timings, "files": files}
+    write_json(os.path.join(outdir, "summary.json"), summary)
+    files.append("summary.json")
+    return files
+
+
+def _write_pictures(path, case, outdir, warn) -> list:
+    """solutions.xdmf, panel.png and the animation as the case's [output] asks; the files written."""
+    out, files = case["output"], []
+    ws = out.get("window_size")
+    mag = out.get("magnification")
+    sols = panel_solutions(path) if out["render_panel"] or out["xdmf"] else []
+    if out["xdmf"] and sols:
+        from cfcontact import fields
+
+        fields.write_xdmf(os.path.join(outdir, "solutions.xdmf"), path.geometry, sols)
+        files.append("solutions.xdmf")
+    if out["render_panel"] and sols:
+        from cfcontact import render
+
+        stresses = None
+        if out["stress"]:
+            from cfcontact import fields
+
+            stresses = [fields.von_mises(path.geometry, s.u) for s in sols]
+        render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
+                            window_size=None if ws is None else tuple(ws), stresses=stresses)
+        files.append("panel.png")
+    if out["render_animation"] and len(path.alphas):
+        from cfcontact import render
+
+        fmt = out["animation_format"]
+        name = "animation_frames" if fmt == "frames" else f"animation.{fmt}"
+        stress = None
+        if out["stress"]:
+            from cfcontact import fields
+
+            def stress(sol):
+                return fields.von_mises(path.geometry, sol.u)
+
+        res = render.render_animation(path, os.path.join(outdir, name), frames=out["animation_frames"],
+                                      magnification=mag, window_size=(960, 640) if ws is None else tuple(ws),
+                                      title=case.get("title"), stress=stress)
+        if res.note:
+            warn(res.note)
+        files.append(os.path.relpath(res.path, outdir) + ("/" if res.kind == "png-frames" else ""))
+    return files
+
+
+def panel_solutions(path):
+    """The solutions at the alpha of largest multiplicity (else the last path point)."""
+    k, a = path.max_multiplicity()
+    sols = path.solutions_at(a) if k else []
+    if not sols and len(path.alphas):
+        from cfcontact.ssnm import Solution
+
+        y = path.point_y(len(path.alphas) - 1)
+        n, m = path.n, path.m
+        sols = [Solution(y[:n], y[n:n + m], y[n + m:], float(path.alphas[-1]),
+                         path.branches[path.point_branch[-1]].sets, 0)]
+    return sols
+
+
+def _is_run_folder(d):
+    if not os.listdir(d):
+        return True
+    try:
+        return read_json(os.path.join(d, "summary.json")).get("format") == RUN_FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _remove(p):
+    if os.path.isdir(p) and not os.path.islink(p):
+        shutil.rmtree(p)
+    else:
+        os.remove(p)
+
+
+# ============================================================ a run
+class CaseRun:
+    """One run of a validated case into its output folder (default ``<case stem>_out/`` next to
+    the case file).  The constructor checks the folders (CaseError: an existing output without
+    ``force``, a stopped run without ``resume`` or ``force``, a checkpoint that does not match the
+    case); :meth:`start`, :meth:`build`, :meth:`trace` and :meth:`finish` do the work, and
+    :meth:`abandon` cleans up after a failure."""
+
+    def __init__(self, case, output=None, force=False, resume=False):
+        self.case = case
+        if output:
+            out = os.path.abspath(output)
+        else:
+            stem = os.path.splitext(os.path.basename(case["_file"]))[0]
+            out = os.path.join(os.path.dirname(case["_file"]), f"{stem}_out")
+        self.out = out.rstrip(os.sep)
+        self.partial = self.out + ".partial"
+        self.resuming = bool(resume)
+        self.timings = {}
+        if os.path.exists(self.out):
+            if not force:
+                raise CaseError(f"the output folder {self.out!r} exists; use --force to replace it or --output DIR")
+            if not os.path.isdir(self.out) or not _is_run_folder(self.out):
+                raise CaseError(f"refusing to replace {self.out!r}: it is not a cfcontact output folder")
+        self.resume = None
+        if resume:
+            if not os.path.isdir(self.partial):
+                raise CaseError(f"nothing to resume: no folder {self.partial!r} (run without --resume)")
+            state, saved = load_checkpoint(self.partial)
+            if not state.get("resumable"):
+                raise CaseError(f"the checkpoint in {self.partial!r} (method {state.get('method')!r}) cannot be "
+                                f"resumed; start over with --force")
+            now = physics(case)
+            changed = [k for k in now if state["physics"].get(k) != now[k]]
+            if changed:
+                raise CaseError(f"the case file changed since the checkpoint in section(s) "
+                                f"{', '.join(f'[{k}]' for k in changed)}; restore it or start over with --force")
+            self.resume = {"path": saved, "state": state["resume_state"]}
+        elif os.path.exists(self.partial):
+            if not force:
+                raise CaseError(f"a stopped run left {self.partial!r}; continue it with --resume or start over "
+                                f"with --force")
+            shutil.rmtree(self.partial)
+        self.created = False
+
+    def start(self):
+        """Create ``<out>.partial/``."""
+        self.created = not os.path.isdir(self.partial)
+        os.makedirs(self.partial, exist_ok=True)
+
+    def build(self):
+        """The case's ContactSystem (timed; the [output] component is checked against it)."""
+        t = time.perf_counter()
+        system = build_system(self.case)
+        self.timings["assembly"] = time.perf_counter() - t
+        comp = self.case["output"].get("component")
+        if comp is not None:
+            try:
+                component_index(system.n, system.m, comp)
+            except InputError as exc:
+                raise CaseError(f"[output] component: {exc}") from None
+        return system
+
+    def trace(self, system, runner: Runner) -> SolutionPath:
+        """Trace the case's path with ``runner`` as the callback; periodic checkpoints are saves.
+        Raises :class:`Stopped` (after writing the checkpoint) when the runner stops the run."""
+        options, span = path_request(self.case)
+        p = self.case["path"]
+        solver = select_solver(system, p["method"], p["backend"])
+        runner.begin(solver, self.resume["path"] if self.resume else None)
+        stepper = path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume)
+
+        def save(path, state):
+            runner.display.clear()
+            save_checkpoint(self.partial, path, self.case, "checkpoint", state)
+            runner.checkpoint_saved()
+
+        t = time.perf_counter()
+        try:
+            path = stepper.run(runner.on_point, save)
+        except KeyboardInterrupt:
+            if has_checkpoint(self.partial):
+                raise Stopped("aborted (Ctrl-C twice); the last periodic checkpoint remains", interrupted=True) \
+                    from None
+            raise
+        if path.status == "stopped by callback" and runner.reason is not None:
+            runner.display.clear()
+            save_checkpoint(self.partial, path, self.case, runner.reason, path.resume_state)
+            raise Stopped(runner.reason, interrupted=runner.interrupted, resumable=path.resume_state is not None)
+        self.timings["trace"] = time.perf_counter() - t
+        runner.end(path)
+        return path
+
+    def finish(self, path, warn: Callable = log.warning, system=None) -> list:
+        """Write the outputs into ``<out>.partial/``, drop the checkpoint, rename it to ``<out>/``."""
+        files = write_outputs(path, self.case, self.partial, self.timings, warn, system)
+        for name in CHECKPOINT_DIRS:
+            shutil.rmtree(os.path.join(self.partial, name), ignore_errors=True)
+        if os.path.isdir(self.out):
+            old = self.out + ".old"
+            shutil.rmtree(old, ignore_errors=True)
+            os.rename(self.out, old)
+            os.rename(self.partial, self.out)
+            shutil.rmtree(old)
+        else:
+            os.rename(self.partial, self.out)
+        return files
+
+    def abandon(self) -> bool:
+        """After a failure: keep only the checkpoint in ``<out>.partial/`` (True), or remove the
+        folder when this run made it or started over (False)."""
+        if has_checkpoint(self.partial):
+            for name in os.listdir(self.partial):
+                if name not in CHECKPOINT_DIRS:
+                    _remove(os.path.join(self.partial, name))
+            return True
+        if self.created or not self.resuming:
+            shutil.rmtree(self.partial, ignore_errors=True)
+        return False
+
+
+# ============================================================ saved paths
+def resolve_saved(dirname) -> str:
+    """The path/ folder of a saved path, a run output folder, or a stopped run's <out>.partial folder."""
+    dirname = os.fspath(dirname)
+    for cand in (dirname, os.path.join(dirname, "path"), os.path.join(dirname, CHECKPOINT_DIRS[0], "path")):
+        if os.path.isfile(os.path.join(cand, "path.json")):
+            return cand
+    raise CaseError(f"{dirname!r} is not a saved path (expected path.json in it, in path/ or in checkpoint/path/)")
+
+
+def saved_material(src, path):
+    """The material of a saved path: stored with its geometry, else the [material] of the run's case.toml
+    (paths saved before the material was stored); CaseError if neither is there."""
+    material = getattr(path.geometry, "material", None)
+    if material is not None:
+        return material
+    folder = os.path.abspath(src)
+    # <out>/path -> <out>/case.toml; <out>.partial/checkpoint/path -> <out>.partial/case.toml
+    for cand in (os.path.dirname(folder), os.path.dirname(os.path.dirname(folder))):
+        fn = os.path.join(cand, "case.toml")
+        if os.path.isfile(fn):
+            try:
+                with open(fn, "rb") as fh:
+                    mat = tomllib.loads(fh.read().decode("utf-8")).get("material", {})
+            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+                continue
+            return {key: mat.get(key, default) for key, default in DEFAULT_MATERIAL.items()}
+    raise CaseError(f"{src!r} stores no material (saved by an older cfcontact) and no case.toml is next to it; "
+                    f"re-run the case to get stresses")

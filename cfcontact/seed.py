@@ -1,0 +1,272 @@
+"""The seed's path following (its Section 4) as a stepper.
+
+On an oriented branch (inactive sets Z, orientation s) the predictor-corrector takes
+y_pred = DirNeu(Z, f(alpha + s h)) and accepts the step iff SSNM returns the predictor after one
+iteration (``is_fixed_point``); the step grows by c_p after a success and shrinks by c_s after
+a failure, within [h_min, h_max].  A failure at h_min runs the branching algorithm: the
+branching indicator (17) picks the set change (18); the branch continues transversally if
+DirNeu with the new sets is a fixed point at alpha + s h_fail, otherwise it is a fold.  When
+the indicator's minimizer is misleading, further candidates are tried (:func:`_branching`).
+
+:class:`SeedStepper` holds the loop state (branch, alpha, y, step h, step count, cycle
+detector) between accepted points, so its :attr:`~SeedStepper.resume_state` is always current:
+a checkpoint is a save of the live path and that state.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Optional
+
+import numpy as np
+
+from cfcontact.options import AlphaSpan, PathOptions
+from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
+from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point
+from cfcontact.start import branch_endpoints, resume_parts, start_point
+from cfcontact.stepper import Stepper
+
+log = logging.getLogger(__name__)
+
+
+class SeedStepper(Stepper):
+    """One run of the seed's method; see :class:`cfcontact.stepper.Stepper`.
+
+    ``resume``: ``{"path": SolutionPath, "state": resume state}`` of a stopped or checkpointed
+    run (the path possibly saved and loaded); new points are appended to that path.
+    """
+
+    method = "seed"
+
+    def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None):
+        self.system, self.span, self.opts = system, span, options
+        self.solver = solver or get_solver(system)
+        self.f1, self.f2 = system.loads_numpy()
+        self.finished = False
+        if resume is None:
+            self._start_clock()
+            self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
+            start = start_point(system, span.start, y0, options, self.solver)
+            self.Z, self.s, self.alpha, self.y = start.sets, span.direction, span.start, start.y
+            self.branch = self.path.add_branch(self.Z, self.s, *branch_endpoints(system, self.solver, self.Z),
+                                               alpha_enter=self.alpha)
+            self.path.add_point(self.branch, self.alpha, self.y)
+            self.h, self.steps, self.last_seen, self.done = options.h0, 0, {}, False
+            self._start_pending = True  # the start point is the first accepted point
+        else:  # continue exactly after the last accepted point of the stopped run
+            path, state = resume_parts(system, span.start, span.end, resume, "seed")
+            self._start_clock(path.stats)
+            self.path = path
+            self.h, self.steps = float(state["h"]), int(state["steps"])
+            self.last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c)
+                              for k, sg, r, c in state.get("last_seen", [])}
+            self.done = bool(state.get("done", False))
+            self.branch = path.branches[-1]
+            self.Z, self.s = self.branch.sets, self.branch.orientation
+            self.alpha, self.y = path._alphas[-1], path._ys[-1]
+            path.status = "running"
+            self._start_pending = False
+
+    # ------------------------------------------------------------- stepper interface
+    @property
+    def resume_state(self) -> dict:
+        """The loop state after the last accepted point: step h, step count, whether that point
+        ended the run, and the cycle detector."""
+        return {"h": self.h, "steps": self.steps, "done": bool(self.done),
+                "last_seen": [[k.hex(), sg, r, c] for (k, sg, r), c in self.last_seen.items()]}
+
+    def point(self, index: int) -> PathPoint:
+        path = self.path
+        sol = Solution.from_y(self.system, path._ys[index], path._alphas[index], sets=self.Z)
+        return PathPoint(index, path._alphas[index], self.branch.index, sol, path)
+
+    def stop(self) -> SolutionPath:
+        return self._finish("stopped by callback", done=self.done)
+
+    def _update_stats(self):
+        self.branch.alpha_exit = self.alpha
+        super()._update_stats()
+
+    def _finish(self, status, done=False) -> SolutionPath:
+        self.finished = True
+        self.branch.alpha_exit = self.alpha
+        self.path.status = status
+        self._update_stats()
+        self.done = done  # the state for trace_path(resume=...): had the run ended at its last point?
+        self.path.resume_state = self.resume_state
+        log.info("seed path: %s", self.path)
+        return self.path
+
+    def advance(self) -> Optional[int]:
+        if self.finished:
+            return None
+        if self._start_pending:
+            self._start_pending = False
+            return 0
+        if self.done:  # the last accepted point ended the path
+            self._finish("completed")
+            return None
+        system, solver, opts, path = self.system, self.solver, self.opts, self.path
+        lo, hi, f1, f2 = self.span.lo, self.span.hi, self.f1, self.f2
+        while True:
+            self.steps += 1
+            alpha, s, Z, h = self.alpha, self.s, self.Z, self.h
+            if self.steps > opts.max_steps:
+                path.events.append(PathEvent("max_steps", alpha, f"step cap {opts.max_steps} reached",
+                                             self.branch.index))
+                self._finish("max_steps")
+                return None
+            a_new = alpha + s * h
+            clipped = False
+            if a_new >= hi or a_new <= lo:
+                a_new = min(max(a_new, lo), hi)
+                clipped = True
+            step = abs(a_new - alpha)
+            y_pred = solver.solve(Z, (1.0 - a_new) * f1 + a_new * f2) if step > 0 else self.y
+            if step > 0 and is_fixed_point(system, y_pred, Z):
+                self.alpha, self.y = a_new, y_pred
+                idx = path.add_point(self.branch, a_new, y_pred)
+                self.h = min(opts.c_p * h, opts.h_max)
+                self.done = clipped
+                return idx
+            if h > opts.h_min and step > 0:
+                self.h = max(opts.c_s * h, opts.h_min)
+                continue
+            return self._transition(step if step > 0 else h)
+
+    def _transition(self, h_fail) -> Optional[int]:
+        """The branching algorithm at the last point (alpha, y) of the branch; index of the first
+        point on the new branch, or None when the run ends here."""
+        system, solver, opts, path = self.system, self.solver, self.opts, self.path
+        alpha, s, Z, y, branch = self.alpha, self.s, self.Z, self.y, self.branch
+        lo, hi = self.span.lo, self.span.hi
+        if len(path.transitions) >= opts.max_transitions:
+            path.events.append(PathEvent("max_transitions", alpha, f"transition cap {opts.max_transitions} reached",
+                                         branch.index))
+            self._finish("max_transitions")
+            return None
+        choice = _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi)
+        if choice is None:
+            path.events.append(PathEvent("no_indicator", alpha, "no set change available at the branch end",
+                                         branch.index))
+            self._finish("stuck")
+            return None
+        tkind, node, kind, Z_new, s_new, a_next, y_next, verified, changes = choice
+        a1 = alpha + s * h_fail
+        if not verified:
+            path.events.append(PathEvent(
+                "unverified_transition", alpha,
+                "no candidate set change gives a solution on either side; the seed's rule (a fold) was applied "
+                "with the smallest indicator", branch.index, {"node": node, "set": kind}))
+        key = (Z_new.canonical_key(system.friction), s_new, round(a_next / max(opts.h_min, 1e-300)))
+        self.last_seen[key] = self.last_seen.get(key, 0) + 1
+        if self.last_seen[key] > 2:
+            path.events.append(PathEvent("cycling", alpha, "the branching algorithm returns to the same branch at "
+                                         "the same alpha; the transition cannot be resolved by the seed's indicator",
+                                         branch.index, {"node": node, "set": kind}))
+            self._finish("cycling")
+            return None
+        branch.alpha_exit = alpha
+        tr = Transition(len(path.transitions), alpha, tkind, node, kind, branch.index, len(path.branches),
+                        bracket=(min(alpha, a1), max(alpha, a1)),
+                        changes=changes)
+        path.transitions.append(tr)
+        log.info("alpha=%.8g %s transition: node %d set %s", alpha, tkind, node, kind)
+        self.branch = path.add_branch(Z_new, s_new, *branch_endpoints(system, solver, Z_new), origin=tr.index,
+                                      parent=branch.index, alpha_enter=alpha)
+        self.Z, self.s, self.alpha, self.y = Z_new, s_new, a_next, y_next
+        idx = path.add_point(self.branch, a_next, y_next)
+        self.done = tkind == "transversal" and (a_next >= hi or a_next <= lo)
+        return idx
+
+
+# ------------------------------------------------------------------ branching
+def _ranked_toggles(system, y, sets, limit=8):
+    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``.
+
+    Toggles that cannot change DirNeu's solution (the tangential set of an open node, or of a
+    node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns [(value, node, kind, Z_new)].
+    """
+    a, bp, bm = indicators(system, y)
+    if np.any(sets.nu):
+        # The tangential sets of an open node do not change DirNeu's solution, so they go stale
+        # along a branch (T u may change sign).  Refresh them from y, so that closing the node
+        # (toggling I_nu) starts it slipping in the direction of its current T u.
+        tm = np.where(sets.nu, bm < 0, sets.tm)
+        sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
+    vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])
+    out = []
+    for k in np.argsort(vals, kind="stable"):
+        kind, i = SET_NAMES[k // system.m], int(k % system.m)
+        new = toggle(sets, i, kind)
+        if not new.equivalent(sets, system.friction):
+            out.append((float(vals[k]), i, kind, new))
+            if len(out) >= limit:
+                break
+    return out
+
+
+def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
+    """The seed's branching algorithm, made robust.
+
+    First the seed's own choice (the minimizer of (17)): transversal if DirNeu(Z_new) at
+    alpha + s h_fail is a fixed point, else a fold if DirNeu(Z_new) at alpha is one.  When
+    neither holds (two indicators vanish within one step, or the minimizer is misleading),
+    the next candidates of (17) and pairs of the first ones are tried the same way, keeping
+    only continuations that join the old branch continuously.  Returns
+    (kind, node, set, Z_new, s_new, alpha_next, y_next, verified, changes) or None.
+    """
+    f1, f2 = system.loads_numpy()
+    load = lambda a: (1.0 - a) * f1 + a * f2  # noqa: E731
+    singles = _ranked_toggles(system, y, Z)
+    if not singles:
+        return None
+    a1 = alpha + s * h_fail
+    cands = [(c[3], [(c[1], c[2])]) for c in singles]
+    top = singles[:4]
+    for i in range(len(top)):
+        for j in range(i + 1, len(top)):
+            if top[i][1] == top[j][1] and top[i][2] == top[j][2]:
+                continue
+            Zp = toggle(top[i][3], top[j][1], top[j][2])
+            cands.append((Zp, [(top[i][1], top[i][2]), (top[j][1], top[j][2])]))
+    y_old_1 = None
+    for rank, (Zn, changes) in enumerate(cands):
+        node, kind = changes[0]
+        y1 = solver.solve(Zn, load(a1)) if lo <= a1 <= hi else None
+        y2 = None
+        if rank > 0:
+            # continuity with the old branch: the two affine branches meet at the transition
+            if y_old_1 is None:
+                y_old_1 = solver.solve(Z, load(a1)) if y1 is not None else None
+            y2 = solver.solve(Zn, load(alpha))
+            jump = np.linalg.norm(y2 - y)
+            scale = np.linalg.norm(y) + 1e-300
+            if y1 is not None and y_old_1 is not None:
+                slope_gap = np.linalg.norm((y1 - y2) - (y_old_1 - y)) / max(h_fail, 1e-300) * h_fail
+                if jump > 2.0 * slope_gap + 1e-9 * scale:
+                    continue
+        if y1 is not None and is_fixed_point(system, y1, Zn):
+            return ("transversal", node, kind, Zn, s, a1, y1, True, [{"node": n, "set": k} for n, k in changes])
+        if y2 is None:
+            y2 = solver.solve(Zn, load(alpha))
+        if is_fixed_point(system, y2, Zn):
+            return ("fold", node, kind, Zn, -s, alpha, y2, True, [{"node": n, "set": k} for n, k in changes])
+    Zn, changes = cands[0]
+    node, kind = changes[0]
+    return ("fold", node, kind, Zn, -s, alpha, solver.solve(Zn, load(alpha)), False,
+            [{"node": node, "set": kind}])
+
+
+def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:
+    """Move node i between the active and inactive set named by kind (rule (18))."""
+    nu, tp, tm = sets.nu.copy(), sets.tp.copy(), sets.tm.copy()
+    if kind == "nu":
+        nu[i] = not nu[i]
+    elif kind == "tp":
+        tp[i] = not tp[i]
+    elif kind == "tm":
+        tm[i] = not tm[i]
+    else:
+        raise ValueError(kind)
+    return InactiveSets(nu, tp, tm)

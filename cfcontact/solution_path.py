@@ -1,0 +1,631 @@
+"""The result model of path following: :class:`SolutionPath` and its parts.
+
+The solution path is a chain (a tree, with :func:`cfcontact.exact.follow_alternative`) of
+oriented linear branches (inactive sets Z fixed, orientation s = +-1) joined at transition
+points.  Along a branch y(alpha) = (1 - alpha) Y1 + alpha Y2 with Y1 = DirNeu(Z, f1),
+Y2 = DirNeu(Z, f2) exactly, so every branch stores (Y1, Y2) and
+:meth:`SolutionPath.solutions_at` evaluates branches exactly (no interpolation between
+stored points), also after :meth:`SolutionPath.load`.
+
+Lazy branches: with the condensed backend (:class:`cfcontact.condensed.CondensedSolver`) a
+branch is determined by its multipliers, lam(alpha) = (1 - alpha) lam1 + alpha lam2, and the
+exact method stores only (lam1, lam2), the indicator values at alpha = 0 and 1 and the backend.
+The displacements u = K^-1 (f - B^T lam) of such branches (and of their stored points) are
+formed when first needed (``ys``, ``points``, ``branch_y``, ``solutions_at``, ``save``), for
+many branches at once in one multi-right-hand-side solve.  ``multiplicity``,
+``max_multiplicity``, :meth:`SolutionPath.multiplicity_intervals` and the multiplier
+components of ``component`` need no u at all.
+
+The multiplicity scan (number of distinct solutions between consecutive branch ends) runs once
+per state of the path and is cached: :meth:`~SolutionPath.max_multiplicity`,
+:meth:`~SolutionPath.multiplicity_intervals`, :meth:`~SolutionPath.summary`, the CLI's reports
+and :func:`cfcontact.plotting.plot_multiplicity` share it.
+
+This module needs NumPy, SciPy and the semi-smooth Newton layer's set objects only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import asdict, dataclass, field
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from cfcontact.errors import InputError
+from cfcontact.jsonio import jsonable
+from cfcontact.ssnm import InactiveSets, Solution
+from cfcontact.system import ContactGeometry, ContactSystem
+
+FORMAT_VERSION = 1
+SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
+
+
+@dataclass
+class PathPoint:
+    """An accepted point of the path (what the callback sees)."""
+
+    index: int
+    alpha: float
+    branch: int
+    solution: Solution
+    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path
+
+
+@dataclass
+class Branch:
+    """An oriented linear branch: inactive sets, orientation and the points the path took on it.
+
+    alpha_enter / alpha_exit: where the path entered and left the branch (estimates at
+    transitions for the seed method, exact for the exact method).
+    origin: index of the transition that started it (None for the first branch).
+    """
+
+    index: int
+    sets: InactiveSets
+    orientation: int
+    points: list = field(default_factory=list)
+    alpha_enter: float = float("nan")
+    alpha_exit: float = float("nan")
+    origin: Optional[int] = None
+    parent: Optional[int] = None
+
+    def to_dict(self) -> dict:
+        return {"index": self.index, "sets": self.sets.to_dict(), "states": self.sets.states(),
+                "orientation": self.orientation, "points": list(map(int, self.points)),
+                "alpha_enter": self.alpha_enter, "alpha_exit": self.alpha_exit,
+                "origin": self.origin, "parent": self.parent}
+
+    @classmethod
+    def from_dict(cls, d) -> "Branch":
+        return cls(index=d["index"], sets=InactiveSets.from_dict(d["sets"]), orientation=d["orientation"],
+                   points=list(d["points"]), alpha_enter=d["alpha_enter"], alpha_exit=d["alpha_exit"],
+                   origin=d["origin"], parent=d.get("parent"))
+
+
+@dataclass
+class Transition:
+    """A transition point between two branches.
+
+    kind: "transversal" (alpha keeps its direction) or "fold" (alpha turns back).
+    node, set: the contact node and the set ("nu": A_nu <-> I_nu, "tp": A_t <-> I_t^+,
+        "tm": A_t <-> I_t^-) that changed; ``changes`` lists all of them when several did.
+    alpha: the transition parameter (seed: last point before it, within the bracket;
+        exact: the root of the indicator).  bracket: (lo, hi) known to contain it.
+    """
+
+    index: int
+    alpha: float
+    kind: str
+    node: int
+    set: str
+    from_branch: int
+    to_branch: int
+    bracket: tuple = (float("nan"), float("nan"))
+    changes: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["bracket"] = list(self.bracket)
+        return d
+
+    @classmethod
+    def from_dict(cls, d) -> "Transition":
+        d = dict(d)
+        d["bracket"] = tuple(d["bracket"])
+        return cls(**d)
+
+
+@dataclass
+class PathEvent:
+    """Something the run could not handle normally (reported, never silent)."""
+
+    kind: str
+    alpha: float
+    message: str
+    branch: Optional[int] = None
+    data: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: Lazy branches are formed together (one batch) when their displacements take at most this
+#: many doubles; beyond it only the branches asked for are formed.
+BATCH_LIMIT = 200_000_000
+
+
+class _Points(list):
+    """y of every stored point.  An entry None lies on a lazy branch (multipliers only) and is
+    formed on first access (indexing, iteration); the list then holds the array."""
+
+    __slots__ = ("_path",)
+
+    def __init__(self, path, items=()):
+        super().__init__(items)
+        self._path = path
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        v = list.__getitem__(self, i)
+        if v is None:
+            j = i + len(self) if i < 0 else i
+            self._path._form_points([j])
+            v = list.__getitem__(self, j)
+        return v
+
+    def __iter__(self):
+        self._path._form_points(range(len(self)))
+        return list.__iter__(self)
+
+    def __reduce__(self):
+        return (list, (list(self),))
+
+
+class SolutionPath:
+    """The traced solution path: points, branches, transitions, and exact branch evaluation."""
+
+    def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
+                 geometry: Optional[ContactGeometry] = None):
+        self.n, self.m = int(n), int(m)
+        self.N, self.T = sp.csr_matrix(N), sp.csr_matrix(T)
+        self.friction = friction
+        self.rho = float(rho)
+        self.method = method
+        self.alpha_start, self.alpha_end = float(alpha_start), float(alpha_end)
+        self.options = options or {}
+        self.geometry = geometry
+        self._alphas: list = []
+        self._ys: list = _Points(self)
+        self._point_branch: list = []
+        self.branches: list = []
+        self.transitions: list = []
+        self.events: list = []
+        self.status = "running"
+        self.stats: dict = {}
+        self.resume_state: Optional[dict] = None  # state to continue a stopped run (trace_path(resume=...))
+        self._Y: dict = {}  # branch index -> (Y1, Y2)
+        # lazy branches: index -> (lam1, lam2); indicators (3m at alpha = 0 and 1); unformed -> backend
+        self._lam: dict = {}
+        self._ind: dict = {}
+        self._pending: dict = {}
+        self._scan = None  # cached multiplicity scan: (key, [(a, b, k)])
+
+    # ------------------------------------------------------------- building
+    @classmethod
+    def for_system(cls, system: ContactSystem, method, alpha_start, alpha_end, options=None):
+        N, T = system.contact_maps()
+        return cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
+                   options, system.geometry)
+
+    def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan"),
+                   multipliers=None, indicators=None, source=None):
+        """Append a branch with y(alpha) = (1 - alpha) Y1 + alpha Y2.
+
+        Lazy form: Y1 = Y2 = None, ``multipliers`` = (lam1, lam2) (2m each), ``source`` = a
+        backend with ``displacements(lams, alphas)`` (:class:`~cfcontact.condensed.CondensedSolver`)
+        that forms u when needed, optionally ``indicators`` = (g1, g2), the three indicator
+        vectors of (17) stacked (3m) at alpha = 0 and 1."""
+        b = Branch(len(self.branches), sets, int(orientation), origin=origin, parent=parent, alpha_enter=alpha_enter)
+        self.branches.append(b)
+        if Y1 is None:
+            if multipliers is None or source is None:
+                raise InputError("a lazy branch needs multipliers=(lam1, lam2) and a source backend")
+            self._lam[b.index] = (np.asarray(multipliers[0], dtype=float), np.asarray(multipliers[1], dtype=float))
+            if indicators is not None:
+                self._ind[b.index] = (np.asarray(indicators[0], dtype=float), np.asarray(indicators[1], dtype=float))
+            self._pending[b.index] = source
+        else:
+            self._Y[b.index] = (np.asarray(Y1, dtype=float), np.asarray(Y2, dtype=float))
+        return b
+
+    def add_point(self, branch: Branch, alpha, y=None) -> int:
+        """Append a point; y=None: the point of ``branch`` at alpha (formed lazily on a lazy branch)."""
+        if y is None and branch.index not in self._Y:
+            if branch.index not in self._pending:
+                raise InputError(f"add_point without y needs a lazy branch (branch {branch.index} is not)")
+        elif y is None:
+            y = self.branch_y(branch, alpha)
+        self._alphas.append(float(alpha))
+        self._ys.append(None if y is None else np.asarray(y, dtype=float))
+        self._point_branch.append(branch.index)
+        idx = len(self._alphas) - 1
+        branch.points.append(idx)
+        return idx
+
+    # ------------------------------------------------------------- accessors
+    @property
+    def alphas(self) -> np.ndarray:
+        """alpha of every stored point, in path order."""
+        return np.asarray(self._alphas, dtype=float)
+
+    @property
+    def ys(self) -> np.ndarray:
+        """y = (u, lam_n, lam_t) of every stored point, (P, n + 2m)."""
+        self._form_points(range(len(self._ys)))
+        return np.asarray(list(self._ys), dtype=float).reshape(len(self._ys), self.n + 2 * self.m)
+
+    def point_y(self, i: int) -> np.ndarray:
+        """y of stored point ``i`` (a lazy path forms the displacements of that point's branch only)."""
+        return self._ys[int(i)]
+
+    @property
+    def lams(self) -> np.ndarray:
+        """(lam_n, lam_t) of every stored point, (P, 2m): no displacement is formed."""
+        if not self._pending:
+            return self.ys[:, self.n:]
+        return np.asarray([self._point_lam(i) for i in range(len(self._alphas))], dtype=float).reshape(
+            len(self._alphas), 2 * self.m)
+
+    @property
+    def point_branch(self) -> np.ndarray:
+        return np.asarray(self._point_branch, dtype=int)
+
+    @property
+    def points(self):
+        """[(alpha, y)] in path order."""
+        return list(zip(self._alphas, self._ys))
+
+    @property
+    def folds(self) -> list:
+        return [t for t in self.transitions if t.kind == "fold"]
+
+    def branch_y(self, branch, alpha) -> np.ndarray:
+        """y on a branch at alpha, exactly: (1 - alpha) Y1 + alpha Y2."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        if b not in self._Y:
+            self.form([b])
+        Y1, Y2 = self._Y[b]
+        return (1.0 - alpha) * Y1 + alpha * Y2
+
+    # ------------------------------------------------------- lazy branches
+    @property
+    def lazy(self) -> bool:
+        """Does the path have branches whose displacements are not formed yet?"""
+        return bool(self._pending)
+
+    def form(self, branches=None):
+        """Form (Y1, Y2) of lazy branches (default: all), in one multi-RHS solve per backend.
+
+        Collective under MPI (every rank must call it for the same branches).  When the
+        requested branches are few, every pending branch is formed along with them as long as
+        that batch stays within BATCH_LIMIT doubles."""
+        want = sorted(self._pending) if branches is None else sorted({int(b) for b in branches} & set(self._pending))
+        if not want:
+            return
+        if branches is not None and len(self._pending) * 2 * (self.n + 2 * self.m) <= BATCH_LIMIT:
+            want = sorted(self._pending)
+        by_source: dict = {}
+        for b in want:
+            by_source.setdefault(id(self._pending[b]), (self._pending[b], []))[1].append(b)
+        for source, bs in by_source.values():
+            lams = np.empty((2 * self.m, 2 * len(bs)))
+            for k, b in enumerate(bs):
+                lams[:, 2 * k], lams[:, 2 * k + 1] = self._lam[b]
+            U = source.displacements(lams, np.tile([0.0, 1.0], len(bs)))
+            for k, b in enumerate(bs):
+                lam1, lam2 = self._lam[b]
+                self._Y[b] = (np.concatenate([U[:, 2 * k], lam1]), np.concatenate([U[:, 2 * k + 1], lam2]))
+                del self._pending[b]
+
+    def _form_points(self, indices):
+        """Replace the lazy entries (None) among the points ``indices`` by their y."""
+        ys = self._ys
+        idx = [i for i in indices if list.__getitem__(ys, i) is None]
+        if not idx:
+            return
+        self.form({self._point_branch[i] for i in idx})
+        for i in idx:
+            list.__setitem__(ys, i, self.branch_y(self._point_branch[i], self._alphas[i]))
+
+    def iter_points(self, batch: int = 256, indices=None):
+        """(alpha, y) of every stored point (or of the points ``indices``) in path order, without
+        keeping the displacements of lazy points: they are formed ``batch`` at a time (one
+        multi-RHS solve) and dropped.  Collective under MPI.  For verifying large paths."""
+        order = list(range(len(self._alphas))) if indices is None else [int(i) for i in indices]
+        P, batch = len(order), max(1, int(batch))
+        for c0 in range(0, P, batch):
+            idx = order[c0:c0 + batch]
+            lazy = [i for i in idx if list.__getitem__(self._ys, i) is None
+                    and self._point_branch[i] in self._pending]
+            formed = {}
+            by_source: dict = {}
+            for i in lazy:
+                src = self._pending[self._point_branch[i]]
+                by_source.setdefault(id(src), (src, []))[1].append(i)
+            for src, ii in by_source.values():
+                lams = np.stack([self._point_lam(i) for i in ii], axis=1)
+                U = src.displacements(lams, [self._alphas[i] for i in ii])
+                for k, i in enumerate(ii):
+                    formed[i] = np.concatenate([U[:, k], lams[:, k]])
+            for i in idx:
+                yield self._alphas[i], formed[i] if i in formed else self._ys[i]
+
+    def branch_lam(self, branch, alpha):
+        """(lam_n, lam_t) on a branch (or its index) at alpha; a lazy branch forms no displacement."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        if b in self._lam:
+            lam1, lam2 = self._lam[b]
+            return (1.0 - alpha) * lam1 + alpha * lam2
+        return self.branch_y(b, alpha)[self.n:]
+
+    def _point_lam(self, i):
+        y = list.__getitem__(self._ys, i)
+        if y is not None:
+            return y[self.n:]
+        return self.branch_lam(self._point_branch[i], self._alphas[i])
+
+    def _branch_indicators(self, b, alpha):
+        """(a, bp, bm) of (17) on branch b at alpha (from the stored indicators of a lazy branch)."""
+        if b in self._ind:
+            g1, g2 = self._ind[b]
+            g = (1.0 - alpha) * g1 + alpha * g2
+            m = self.m
+            return g[:m], g[m:2 * m], g[2 * m:]
+        return self._indicators(self.branch_y(b, alpha))
+
+    def _indicators(self, y):
+        n, m = self.n, self.m
+        u, ln, lt = y[:n], y[n:n + m], y[n + m:]
+        F = np.broadcast_to(np.asarray(self.friction, dtype=float), (m,))
+        a = ln + self.rho * (self.N @ u)
+        b = lt + self.rho * (self.T @ u)
+        return a, b - F * ln, b + F * ln
+
+    def _consistent(self, y, sets, slack=1e-9, ind=None):
+        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative); ``ind`` = (a, bp, bm) of y if known."""
+        a, bp, bm = self._indicators(y) if ind is None else ind
+        scale = max(np.abs(a).max(initial=0), np.abs(bp).max(initial=0), np.abs(bm).max(initial=0), 1e-300)
+        tol = slack * scale
+        F = np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,))
+        free = sets.nu | (F == 0.0)
+        ok_nu = np.where(sets.nu, a < tol, a > -tol)
+        ok_tp = np.where(sets.tp, bp > -tol, bp < tol)
+        ok_tm = np.where(sets.tm, bm < tol, bm > -tol)
+        # open nodes / F = 0: only "tangentially free or stuck" matters
+        it = sets.tp | sets.tm
+        ok_free = np.where(it, (bp > -tol) | (bm < tol), (bp < tol) & (bm > -tol))
+        ok_t = np.where(free, ok_free, ok_tp & ok_tm)
+        return bool(np.all(ok_nu & ok_t))
+
+    def branch_extent(self, branch) -> tuple:
+        """(lo, hi) of alpha covered by the path on this branch (transition to transition)."""
+        b = self.branches[branch] if not isinstance(branch, Branch) else branch
+        vals = [self._alphas[i] for i in b.points]
+        for a in (b.alpha_enter, b.alpha_exit):
+            if np.isfinite(a):
+                vals.append(a)
+        return (min(vals), max(vals)) if vals else (np.nan, np.nan)
+
+    def solutions_at(self, alpha: float, rtol: float = 1e-9) -> list:
+        """Every distinct solution the path has at ``alpha``, evaluated exactly on each branch crossing it.
+
+        Returns a list of :class:`Solution` sorted by branch order.
+        """
+        alpha = float(alpha)
+        picked = self._solution_branches(alpha, rtol)
+        self.form([b.index for b in picked])
+        out = []
+        n, m = self.n, self.m
+        for b in picked:
+            y = self.branch_y(b, alpha)
+            out.append(Solution(y[:n].copy(), y[n:n + m].copy(), y[n + m:].copy(), alpha, b.sets, 0))
+        return out
+
+    def _solution_branches(self, alpha, rtol=1e-9, extents=None) -> list:
+        """The branches giving the distinct solutions at alpha (lazy branches are decided from
+        their multipliers and indicators, without forming u; the multipliers determine u).
+        ``extents``: the (B, 2) array of every branch's extent, if already at hand."""
+        out, keys = [], []
+        if extents is None:
+            extents = np.array([self.branch_extent(b) for b in self.branches], dtype=float).reshape(-1, 2)
+        for j in np.flatnonzero((extents[:, 0] <= alpha) & (alpha <= extents[:, 1])):
+            b = self.branches[j]
+            if b.index in self._Y:
+                y = self.branch_y(b, alpha)
+                if not self._consistent(y, b.sets):
+                    continue
+                key = (y, False)
+            else:
+                if not self._consistent(None, b.sets, ind=self._branch_indicators(b.index, alpha)):
+                    continue
+                key = (self.branch_lam(b.index, alpha), True)
+            if any(_same_point(key, z, self.n, rtol) for z in keys):
+                continue
+            keys.append(key)
+            out.append(b)
+        return out
+
+    def multiplicity(self, alpha: float) -> int:
+        """Number of distinct solutions of the path at alpha."""
+        return len(self._solution_branches(float(alpha)))
+
+    def _multiplicity_scan(self) -> tuple:
+        """([(a, b, k)] for every pair of consecutive distinct branch ends a < b, k = the number of
+        distinct solutions at (a + b) / 2 (constant between branch ends); the extents array).
+
+        Cached until the branches, their extents or the formed state of lazy branches change."""
+        extents = np.array([self.branch_extent(b) for b in self.branches], dtype=float).reshape(-1, 2)
+        key = (len(self.branches), len(self._pending), extents.tobytes())
+        if self._scan is None or self._scan[0] != key:
+            ends = sorted({float(e) for e in extents.ravel() if np.isfinite(e)})
+            scan = [(a, b, len(self._solution_branches(0.5 * (a + b), extents=extents)))
+                    for a, b in zip(ends[:-1], ends[1:]) if b > a]
+            self._scan = (key, scan)
+        return self._scan[1], extents
+
+    def multiplicity_intervals(self, alpha_range=None) -> list:
+        """[(alpha_lo, alpha_hi, k)]: the number k of distinct solutions on each alpha interval
+        between branch ends (neighbours with equal k merged), in increasing alpha; with
+        ``alpha_range`` = (lo, hi) the intervals of that window."""
+        if alpha_range is None:
+            scan = self._multiplicity_scan()[0]
+        else:
+            lo, hi = alpha_range
+            ends = sorted({float(e) for b in self.branches for e in self.branch_extent(b) if np.isfinite(e)})
+            ends = sorted({lo, hi, *[e for e in ends if lo < e < hi]})
+            scan = [(a, b, self.multiplicity(0.5 * (a + b))) for a, b in zip(ends[:-1], ends[1:]) if b > a]
+        out = []
+        for a, b, k in scan:
+            if out and out[-1][2] == k:
+                out[-1] = (out[-1][0], b, k)
+            else:
+                out.append((a, b, k))
+        return out
+
+    def max_multiplicity(self, samples: int = 0):
+        """(max multiplicity, an alpha where it occurs), checked at the midpoints between all branch
+        ends (and at ``samples`` evenly spaced alphas)."""
+        scan, extents = self._multiplicity_scan()
+        best = (0, float("nan"))
+        for a, b, k in scan:
+            if k > best[0]:
+                best = (k, 0.5 * (a + b))
+        if samples:
+            ends = sorted({float(e) for e in extents.ravel() if np.isfinite(e)})
+            for a in np.linspace(min(ends), max(ends), samples):
+                k = len(self._solution_branches(float(a), extents=extents))
+                if k > best[0]:
+                    best = (k, a)
+        return best
+
+    def component(self, spec) -> np.ndarray:
+        """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y."""
+        idx = self.component_index(spec)
+        if idx >= self.n:  # a multiplier: no displacement needed
+            return self.lams[:, idx - self.n]
+        return self.ys[:, idx]
+
+    def component_index(self, spec) -> int:
+        """The index in y of a component (see :func:`component_index`)."""
+        return component_index(self.n, self.m, spec)
+
+    def summary(self) -> dict:
+        mult, at = self.max_multiplicity()
+        return {"method": self.method, "status": self.status, "points": len(self._alphas),
+                "branches": len(self.branches), "transitions": len(self.transitions),
+                "transversal": sum(t.kind == "transversal" for t in self.transitions),
+                "folds": len(self.folds), "max_multiplicity": mult, "alpha_of_max": at,
+                "events": len(self.events), **self.stats}
+
+    def __repr__(self):
+        return (f"SolutionPath(method={self.method!r}, status={self.status!r}, points={len(self._alphas)}, "
+                f"branches={len(self.branches)}, transitions={len(self.transitions)}, folds={len(self.folds)})")
+
+    # ------------------------------------------------------------ save / load
+    def save(self, path) -> str:
+        """Write the path to a directory ``path`` (created; replaced atomically if it exists).
+
+        Format (version 1): ``path.json`` holds the structure (method, options, status, stats,
+        branches with sets and orientation, transitions, events); ``fields.npz`` holds the
+        arrays (alphas, ys, point_branch, per-branch Y1/Y2, N and T in CSR form, friction,
+        geometry of a FEM model).  Lazy branches are formed first (one batched solve), so
+        the saved file is the same as for an eagerly formed path.
+        """
+        path = os.fspath(path)
+        parent = os.path.dirname(os.path.abspath(path))
+        os.makedirs(parent, exist_ok=True)
+        tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
+        try:
+            meta = {"format": "cfcontact-path", "version": FORMAT_VERSION, "n": self.n, "m": self.m,
+                    "rho": self.rho, "method": self.method, "alpha_start": self.alpha_start,
+                    "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
+                    "stats": self.stats, "branches": [b.to_dict() for b in self.branches],
+                    "transitions": [t.to_dict() for t in self.transitions],
+                    "events": [e.to_dict() for e in self.events], "has_geometry": self.geometry is not None}
+            with open(os.path.join(tmp, "path.json"), "w") as fh:
+                json.dump(jsonable(meta, strict=False), fh, indent=1)
+            self.form()
+            arrays = {"alphas": self.alphas, "ys": self.ys, "point_branch": self.point_branch,
+                      "friction": np.asarray(self.friction, dtype=float),
+                      "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
+                      "T_data": self.T.data, "T_indices": self.T.indices, "T_indptr": self.T.indptr}
+            if self.branches:
+                arrays["Y1"] = np.stack([self._Y[b.index][0] for b in self.branches])
+                arrays["Y2"] = np.stack([self._Y[b.index][1] for b in self.branches])
+            if self.geometry is not None:
+                arrays.update({"geometry_" + k: v for k, v in self.geometry.to_dict().items()})
+            np.savez_compressed(os.path.join(tmp, "fields.npz"), **arrays)
+            if os.path.isdir(path):
+                old = path + ".old-" + os.path.basename(tmp)
+                os.rename(path, old)
+                os.rename(tmp, path)
+                shutil.rmtree(old)
+            else:
+                os.rename(tmp, path)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path) -> "SolutionPath":
+        """Read a path written by :meth:`save`."""
+        path = os.fspath(path)
+        jpath = os.path.join(path, "path.json")
+        if not os.path.isfile(jpath):
+            raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
+        with open(jpath) as fh:
+            meta = json.load(fh)
+        if meta.get("format") != "cfcontact-path" or meta.get("version") != FORMAT_VERSION:
+            raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
+        with np.load(os.path.join(path, "fields.npz")) as z:
+            arrays = {k: z[k] for k in z.files}
+        n, m = meta["n"], meta["m"]
+        N = sp.csr_matrix((arrays["N_data"], arrays["N_indices"], arrays["N_indptr"]), shape=(m, n))
+        T = sp.csr_matrix((arrays["T_data"], arrays["T_indices"], arrays["T_indptr"]), shape=(m, n))
+        fr = arrays["friction"]
+        friction = float(fr) if fr.ndim == 0 else fr
+        geometry = None
+        if meta.get("has_geometry"):
+            geometry = ContactGeometry.from_dict({k[len("geometry_"):]: v for k, v in arrays.items()
+                                                  if k.startswith("geometry_")})
+        p = cls(n, m, N, T, friction, meta["rho"], meta["method"], meta["alpha_start"], meta["alpha_end"],
+                meta["options"], geometry)
+        p._alphas = [float(a) for a in arrays["alphas"]]
+        ys = arrays["ys"]
+        p._ys = _Points(p, [ys[i] for i in range(ys.shape[0])])
+        p._point_branch = [int(b) for b in arrays["point_branch"]]
+        p.branches = [Branch.from_dict(d) for d in meta["branches"]]
+        for b in p.branches:
+            p._Y[b.index] = (arrays["Y1"][b.index], arrays["Y2"][b.index])
+        p.transitions = [Transition.from_dict(d) for d in meta["transitions"]]
+        p.events = [PathEvent(**d) for d in meta["events"]]
+        p.status = meta["status"]
+        p.stats = meta["stats"]
+        return p
+
+
+def _same_point(a, b, n, rtol) -> bool:
+    """Same solution?  a, b = (vector, is_multipliers_only); a full y against multipliers compares
+    the multiplier parts (the multipliers determine u for a given load)."""
+    (x, xl), (z, zl) = a, b
+    if xl != zl:
+        x, z = (x if xl else x[n:]), (z if zl else z[n:])
+    return bool(np.abs(x - z).max(initial=0.0) <= rtol * max(np.abs(x).max(initial=0.0),
+                                                             np.abs(z).max(initial=0.0), 1e-300))
+
+
+def component_index(n: int, m: int, spec) -> int:
+    """Index in y = (u, lam_n, lam_t) (n DOFs, m contact nodes) of ("lam_n", i), ("lam_t", i),
+    ("u", dof) or an index of y; InputError when out of range."""
+    if isinstance(spec, (int, np.integer)):
+        idx = int(spec)
+        limit = n + 2 * m
+    else:
+        name, i = spec
+        offsets = {"u": (0, n), "lam_n": (n, m), "lam_t": (n + m, m)}
+        if name not in offsets:
+            raise InputError(f"unknown component {name!r}; valid: 'u', 'lam_n', 'lam_t' or an index of y")
+        off, limit = offsets[name]
+        if not (0 <= int(i) < limit):
+            raise InputError(f"component index {i} out of range for {name!r} (0..{limit - 1})")
+        return off + int(i)
+    if not (0 <= idx < limit):
+        raise InputError(f"component index {idx} out of range (0..{limit - 1})")
+    return idx

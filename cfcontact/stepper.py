@@ -1,0 +1,87 @@
+"""The stepper interface of the path-following methods.
+
+A stepper owns one run of a method on a live :class:`~cfcontact.solution_path.SolutionPath`.
+:meth:`Stepper.run` advances it point by point and hands every accepted point to a callback,
+whose answer decides what happens next:
+
+* falsy: continue;
+* :data:`CHECKPOINT`: call ``save(path, resume_state)`` with the live path (its ``stats`` up to
+  date) and the state that continues it (``trace_path(resume={"path": ..., "state": ...})``),
+  then continue -- a checkpoint is a save, the run is not stopped;
+* anything else truthy: stop there (status "stopped by callback", ``path.resume_state`` set).
+
+:class:`cfcontact.seed.SeedStepper` advances one accepted point at a time and its resume state
+is always current.  The exact method (:mod:`cfcontact.exact`) still runs a callback-driven loop;
+:class:`cfcontact.exact_stepper.ExactStepper` adapts it.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Optional
+
+
+class _Checkpoint:
+    """The callback's answer "save a checkpoint and go on" (a singleton)."""
+
+    def __repr__(self):
+        return "CHECKPOINT"
+
+
+#: Returned by a callback of :meth:`Stepper.run`: save a checkpoint and continue.
+CHECKPOINT = _Checkpoint()
+
+
+class Stepper:
+    """Base class: :meth:`run` over :meth:`advance`; subclasses set ``path``, ``solver`` and the
+    bookkeeping of :meth:`_start_clock` and implement :meth:`advance`, :meth:`point`,
+    :attr:`resume_state` and :meth:`stop`."""
+
+    method = ""
+    path = None
+    solver = None
+
+    def _start_clock(self, before: Optional[dict] = None):
+        """Counters of this run start now; ``before``: the stats of the stopped run it continues."""
+        self._t0 = time.perf_counter()
+        self._stats0 = self.solver.stats.as_dict()
+        self._before = {k: v for k, v in (before or {}).items() if isinstance(v, (int, float))}
+
+    def _update_stats(self):
+        """path.stats = the solver's work since :meth:`_start_clock` plus that of the runs before."""
+        st, before = self.solver.stats.as_dict(), self._before
+        self.path.stats = {k: st[k] - self._stats0.get(k, 0) + before.get(k, 0) for k in st}
+        self.path.stats["wall_time"] = time.perf_counter() - self._t0 + before.get("wall_time", 0.0)
+
+    def advance(self) -> Optional[int]:
+        """Index of the next accepted point of the path, or None when the run has ended."""
+        raise NotImplementedError
+
+    def point(self, index: int):
+        """The :class:`~cfcontact.solution_path.PathPoint` of an accepted point (for callbacks)."""
+        raise NotImplementedError
+
+    @property
+    def resume_state(self) -> dict:
+        """What continues the run after the last accepted point (JSON-able)."""
+        raise NotImplementedError
+
+    def stop(self):
+        """End the run at the last accepted point: status "stopped by callback"; returns the path."""
+        raise NotImplementedError
+
+    def run(self, callback: Optional[Callable] = None, save: Optional[Callable] = None):
+        """Advance to the end (or until the callback stops the run); returns the path."""
+        while True:
+            index = self.advance()
+            if index is None:
+                return self.path
+            if callback is None:
+                continue
+            action = callback(self.point(index))
+            if action is CHECKPOINT:
+                if save is not None:
+                    self._update_stats()
+                    save(self.path, self.resume_state)
+            elif action:
+                return self.stop()
