@@ -790,12 +790,7 @@ def assemble_contact_system(
 def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol):
     """The contact pairs (:class:`cfcontact.pairing.Pairing`) of the model, in slave node order."""
     pts = fem.points
-    f1 = fem.facet_tag_nodes(CONTACT1)
-    if len(f1) == 0:
-        raise GeometryError("contact1 (1-D group 10) has no facets in the mesh")
-    if np.any(fem.node_body[f1.ravel()] != BODY1):
-        raise GeometryError("contact1 (1-D group 10) must lie on the boundary of body1 (2-D group 1)")
-    cent1 = fem.facet_centroid[fem.facet_tag == CONTACT1]
+    f1, cent1 = _contact_facets(fem, CONTACT1, BODY1)
     _, length1 = pairing_mod.facet_normals(pts, f1, cent1)
     h = float(length1.min())
     tol = float(match_tol) * h
@@ -809,12 +804,7 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
             raise GeometryError("pairing='segment' needs a master: contact2 (body2) or an obstacle")
         return pairing_mod.Pairing(nodes1, np.full((k, 2), -1, dtype=np.int64), np.zeros((k, 2)), normal1,
                                    np.zeros(k), trib1, 1)
-    f2 = fem.facet_tag_nodes(CONTACT2)
-    if len(f2) == 0:
-        raise GeometryError("contact2 (1-D group 20) has no facets in the mesh")
-    if np.any(fem.node_body[f2.ravel()] != BODY2):
-        raise GeometryError("contact2 (1-D group 20) must lie on the boundary of body2 (2-D group 2)")
-    cent2 = fem.facet_centroid[fem.facet_tag == CONTACT2]
+    f2, cent2 = _contact_facets(fem, CONTACT2, BODY2)
     if pairing == "node":
         partner = pairing_mod.match_nodes(pts, nodes1, np.unique(f2), tol, match_tol, h)
         master = np.column_stack([partner, np.full(k, -1)]).astype(np.int64)
@@ -825,6 +815,17 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
                                            snap=tol, slave_name="contact1", master_name="contact2")
     return pairing_mod.node_to_segment(pts, f2, cent2, f1, cent1, slave_body=2, search_distance=search_distance,
                                        snap=tol, slave_name="contact2", master_name="contact1")
+
+
+def _contact_facets(fem, tag, body):
+    """(facets (F, 2), centroids of their cells (F, 2)) of a contact boundary, checked."""
+    name = f"contact{body} (1-D group {tag})"
+    facets = fem.facet_tag_nodes(tag)
+    if len(facets) == 0:
+        raise GeometryError(f"{name} has no facets in the mesh")
+    if np.any(fem.node_body[facets.ravel()] != body):
+        raise GeometryError(f"{name} must lie on the boundary of body{body} (2-D group {body})")
+    return facets, fem.facet_centroid[fem.facet_tag == tag]
 
 
 def _pairing_meta(pr, points, pairing, slave_tag, groups, search_distance, obstacle, dropped):

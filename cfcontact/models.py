@@ -6,7 +6,6 @@ geometry scripts are imported inside the functions.
 
 from __future__ import annotations
 
-import importlib
 import math
 from types import MappingProxyType
 
@@ -225,137 +224,82 @@ def _punch_loading(dirichlet, indentation, shift, half):
     return out
 
 
-def _build_and_assemble(geo_name, params, info, kwargs, comm):
+def _pressed_on_block(geo, params, *, indentation, E=2.1e11, nu=0.3, plane="strain", friction=0.0, shift=0.0,
+                      clamp=("bottom2",), dirichlet=None, tractions1=None, tractions2=None, body_force1=None,
+                      body_force2=None, rho=None, comm=None, pairing="segment", slave="contact2",
+                      search_distance=None, match_tol=1e-8):
+    """Build the gmsh model of ``geo`` (a :mod:`cfcontact.meshes` script) with ``params`` (checked)
+    and assemble it as a body pressed on a block; the keywords are those of
+    :func:`cylinder_on_block` and :func:`rounded_punch` after their geometry."""
     from mpi4py import MPI
 
     from cfcontact import compat  # imports dolfinx
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    geo = importlib.import_module(f"cfcontact.meshes.{geo_name}")
+    name = geo.__name__.rpartition(".")[2]
+    kwargs = dict(
+        E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
+        tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
+        friction=friction, rho=rho, match_tol=match_tol, pairing=pairing, slave=slave,
+        search_distance=search_distance, comm=comm,
+        info={"model": name, "model_parameters": dict(params)},
+    )
     if comm.rank == 0:
-        with compat.gmsh_model(f"cfcontact-{geo_name}") as model:
+        with compat.gmsh_model(f"cfcontact-{name}") as model:
             geo.build(**params)
-            return assemble_contact_system(model, info=info, comm=comm, **kwargs)
-    return assemble_contact_system(None, info=info, comm=comm, **kwargs)
+            return assemble_contact_system(model, **kwargs)
+    return assemble_contact_system(None, **kwargs)
 
 
-def cylinder_on_block(
-    *,
-    radius=1.0,
-    width=4.0,
-    depth=2.0,
-    zone=0.3,
-    size=0.02,
-    size_far=0.25,
-    growth=0.2,
-    gap0=0.0,
-    cell="triangle",
-    half=False,
-    E=2.1e11,
-    nu=0.3,
-    plane="strain",
-    friction=0.0,
-    indentation=(0.0, 0.005),
-    shift=0.0,
-    clamp=("bottom2",),
-    dirichlet=None,
-    tractions1=None,
-    tractions2=None,
-    body_force1=None,
-    body_force2=None,
-    rho=None,
-    comm=None,
-    pairing="segment",
-    slave="contact2",
-    search_distance=None,
-    match_tol=1e-8,
-):
+def cylinder_on_block(*, radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, growth=0.2, gap0=0.0,
+                      cell="triangle", half=False, indentation=(0.0, 0.005), **loading):
     """A (half-)cylinder pressed on a block (Hertz contact, plane strain by default), with the
     initial gap of the curved surface: :mod:`cfcontact.meshes.cylinder_on_block`.
 
     Body 1 is the lower half of a cylinder of radius ``radius`` (lowest point ``gap0`` above the
-    block), body 2 the block ``[-width/2, width/2] x [-depth, 0]``, clamped at its bottom.  The
-    bodies are meshed independently (element size ``size`` along the contact boundaries, growing
-    to ``size_far``; ``cell`` triangles or quadrilaterals) and paired node to segment with the
-    block's top as the slave (``slave="contact2"``: vertical normals, gap ``gap0 + R - sqrt(R^2 -
-    x^2)``).  The element size grows by ``growth`` per unit distance from the contact zone.  The mesh is mirror-symmetric about x = 0; ``half=True`` models the right half with
+    block), body 2 the block ``[-width/2, width/2] x [-depth, 0]``.  The bodies are meshed
+    independently (element size ``size`` along the contact boundaries, growing by ``growth`` per
+    unit distance up to ``size_far``; ``cell`` triangles or quadrilaterals) and paired node to
+    segment with the block's top as the slave (vertical normals, gap ``gap0 + R - sqrt(R^2 -
+    x^2)``).  The mesh is mirror-symmetric about x = 0; ``half=True`` models the right half with
     the symmetry conditions u_x = 0 on ``sym1`` and ``sym2``.
 
-    Loading (default): the cylinder's flat top ``top1`` is moved by ``(shift, -indentation)``,
-    each a number or a pair (value at alpha = 0, value at alpha = 1): the indentation depth is the
-    path parameter (default from 0 to 0.005).  ``dirichlet`` replaces these conditions (see
-    :func:`cfcontact.assembly.assemble_contact_system`); tractions and body forces may be added.
-    The contact force P is then the sum of lam_n (``ContactGeometry.tributary`` turns lam_n into a
-    pressure).  Tags: ``contact1, top1, right1, left1, sym1, contact2, top2, bottom2, right2,
-    left2, sym2``.
+    Loading and contact keywords (``loading``, shared with :func:`rounded_punch`): ``E=2.1e11,
+    nu=0.3, plane="strain", friction=0.0``; the cylinder's flat top ``top1`` is moved by
+    ``(shift, -indentation)``, each a number or a pair (value at alpha = 0, value at alpha = 1):
+    the indentation depth is the path parameter (default from 0 to 0.005), ``shift=0.0``;
+    ``clamp=("bottom2",)``; ``dirichlet`` replaces the conditions on the top (see
+    :func:`cfcontact.assembly.assemble_contact_system`); ``tractions1, tractions2, body_force1,
+    body_force2`` may be added; ``rho, comm``; ``pairing="segment", slave="contact2",
+    search_distance=None, match_tol=1e-8``.  The contact force P is the sum of lam_n
+    (``ContactGeometry.tributary`` turns lam_n into a pressure).  Tags: ``contact1, top1, right1,
+    left1, sym1, contact2, top2, bottom2, right2, left2, sym2``.
     """
     from cfcontact.meshes import cylinder_on_block as geo
+
     params = geo.check_parameters(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far,
                                   growth=growth, gap0=gap0, cell=cell, half=half)
-    kwargs = dict(
-        E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
-        tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
-        friction=friction, rho=rho, match_tol=match_tol, pairing=pairing, slave=slave,
-        search_distance=search_distance,
-    )
-    info = {"model": "cylinder_on_block", "model_parameters": dict(params)}
-    return _build_and_assemble("cylinder_on_block", params, info, kwargs, comm)
+    return _pressed_on_block(geo, params, indentation=indentation, **loading)
 
 
-def rounded_punch(
-    *,
-    half_width=0.5,
-    edge_radius=0.1,
-    height=0.5,
-    width=4.0,
-    depth=2.0,
-    zone=None,
-    size=0.01,
-    size_far=0.25,
-    growth=0.2,
-    gap0=0.0,
-    cell="triangle",
-    half=False,
-    E=2.1e11,
-    nu=0.3,
-    plane="strain",
-    friction=0.0,
-    indentation=(0.0, 0.002),
-    shift=0.0,
-    clamp=("bottom2",),
-    dirichlet=None,
-    tractions1=None,
-    tractions2=None,
-    body_force1=None,
-    body_force2=None,
-    rho=None,
-    comm=None,
-    pairing="segment",
-    slave="contact2",
-    search_distance=None,
-    match_tol=1e-8,
-):
+def rounded_punch(*, half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zone=None, size=0.01,
+                  size_far=0.25, growth=0.2, gap0=0.0, cell="triangle", half=False, indentation=(0.0, 0.002),
+                  **loading):
     """A flat punch with rounded edges pressed on a block: :mod:`cfcontact.meshes.rounded_punch`.
 
     Body 1 is the punch ``[-half_width, half_width] x [gap0, gap0 + height]`` with its bottom
     corners rounded (radius ``edge_radius``), body 2 the block ``[-width/2, width/2] x [-depth,
-    0]`` clamped at its bottom; meshed independently (``size`` along the contact boundaries) and
-    paired node to segment with the block's top (``|x| <= zone``, default ``half_width -
-    edge_radius / 4``) as the slave.  The gap is ``gap0`` under the flat part and grows along the
-    rounded edges.  Mirror-symmetric mesh; ``half=True`` models the right half (u_x = 0 on
-    ``sym1``, ``sym2``).  Loading as :func:`cylinder_on_block`: the punch's top is moved by
-    ``(shift, -indentation)`` (default indentation from 0 to 0.002), or ``dirichlet``.
+    0]``; meshed independently (``size`` along the contact boundaries) and paired node to segment
+    with the block's top (``|x| <= zone``, default ``half_width - edge_radius / 4``) as the slave.
+    The gap is ``gap0`` under the flat part and grows along the rounded edges.  Mirror-symmetric
+    mesh; ``half=True`` models the right half (u_x = 0 on ``sym1``, ``sym2``).  Loading and
+    contact keywords as :func:`cylinder_on_block` (the punch's top is moved by ``(shift,
+    -indentation)``, default indentation from 0 to 0.002).
     """
     from cfcontact.meshes import rounded_punch as geo
+
     params = geo.check_parameters(half_width=half_width, edge_radius=edge_radius, height=height, width=width,
                                   depth=depth, zone=zone, size=size, size_far=size_far, growth=growth, gap0=gap0,
                                   cell=cell, half=half)
-    kwargs = dict(
-        E=E, nu=nu, plane=plane, clamp=clamp, dirichlet=_punch_loading(dirichlet, indentation, shift, params["half"]),
-        tractions1=tractions1, tractions2=tractions2, body_force1=body_force1, body_force2=body_force2,
-        friction=friction, rho=rho, match_tol=match_tol, pairing=pairing, slave=slave,
-        search_distance=search_distance,
-    )
-    info = {"model": "rounded_punch", "model_parameters": dict(params)}
-    return _build_and_assemble("rounded_punch", params, info, kwargs, comm)
+    return _pressed_on_block(geo, params, indentation=indentation, **loading)
