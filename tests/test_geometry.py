@@ -183,3 +183,20 @@ def test_pictures_script_renders_a_python_built_variant(tmp_path):
                           env=dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", "")))
     assert proc.returncode == 0, proc.stderr
     assert sorted(os.listdir(tmp_path)) == ["nonmatching.png"] and "m = 12" in proc.stdout
+
+
+def test_saved_path_keeps_the_new_geometry_data(tmp_path, cylinder):
+    """ContactGeometry's tributary lengths, prescribed displacements and obstacle go through
+    SolutionPath.save/load (optional entries: paths saved before them still load)."""
+    from cfcontact.solution_path import SolutionPath
+
+    path = cfcontact.trace_path(cylinder.with_friction(0.3), 0.0, 1.0, method="exact")
+    path.save(tmp_path / "p")
+    geo = SolutionPath.load(tmp_path / "p").geometry
+    assert np.array_equal(geo.tributary, cylinder.geometry.tributary)
+    assert np.array_equal(geo.prescribed, cylinder.geometry.prescribed) and geo.obstacle is None
+    U = geo.displacement_field(path.ys[-1][:cylinder.n], 1.0)
+    moved = np.unique(geo.prescribed[geo.prescribed[:, 1] == 1, 0].astype(int))  # the top's nodes, u_y given
+    assert moved.size and np.allclose(geo.points[moved, 1], 1.0) and np.allclose(U[moved, 1], -0.03)
+    old = {k: v for k, v in geo.to_dict().items() if k not in ("tributary", "prescribed")}
+    assert cfcontact.ContactGeometry.from_dict(old).tributary is None
