@@ -200,3 +200,25 @@ def test_saved_path_keeps_the_new_geometry_data(tmp_path, cylinder):
     assert moved.size and np.allclose(geo.points[moved, 1], 1.0) and np.allclose(U[moved, 1], -0.03)
     old = {k: v for k, v in geo.to_dict().items() if k not in ("tributary", "prescribed")}
     assert cfcontact.ContactGeometry.from_dict(old).tributary is None
+
+
+def test_exact_indentation_path_resolves_the_symmetric_degenerate_transitions(cylinder):
+    """Indentation from 0 on the mirror-symmetric mesh: the nodes at +-x close (and stick) at the
+    same alpha -- degenerate transitions, which the exact method takes as one transition with two
+    changes, without events; the half model (full backend) has the same transitions."""
+    path = cfcontact.trace_path(cylinder.with_friction(0.3), 0.0, 1.0, method="exact")
+    assert path.status == "completed" and not path.events and len(path.transitions) >= 4
+    x = cylinder.geometry.contact_points[:, 0]
+    for t in path.transitions:
+        (a, b) = [c["node"] for c in t.changes]
+        assert x[a] == -x[b]
+    half = cfcontact.cylinder_on_block(**CYL, indentation=(0.0, 0.03), half=True, friction=0.3)
+    hp = cfcontact.trace_path(half, 0.0, 1.0, method="exact", backend="full")
+    assert np.allclose([t.alpha for t in hp.transitions], [t.alpha for t in path.transitions], atol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="phase 2: the seed method cannot start at a zero load where a node has a "
+                                       "zero gap (alpha = 0 of an indentation): it cycles between folds there")
+def test_seed_indentation_path_from_zero_load(cylinder):
+    path = cfcontact.trace_path(cylinder.with_friction(0.3), 0.0, 1.0, method="seed")
+    assert path.status == "completed" and not path.events
