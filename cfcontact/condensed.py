@@ -564,12 +564,32 @@ class CondensedSolver:
             lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
 
-    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray) -> tuple:
+    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False) -> tuple:
         """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
-        method needs of a branch."""
+        method needs of a branch.
+
+        ``refine``: one step of iterative refinement (the residual of the reduced system, i.e. the
+        gaps w - S lam of its equation rows, solved with the same LU) and a third result: the
+        change it made to the indicators (3m x k), an estimate of their rounding error."""
         L = self.multipliers_many(None, W, key=key, codes=codes)
-        return L, self.indicators(L, W, support=self._lu[key][5])
+        entry = self._lu[key]
+        support = entry[5]
+        if not refine:
+            return L, self.indicators(L, W, support=support)
+        lu, piv, rows, slip, coef, _ = entry
+        m = self.m
+        D = np.zeros_like(L)
+        if rows.size:
+            R = W.take(rows, axis=0) - self.S.take(rows, axis=0).take(support, axis=1) @ L.take(support, axis=0)
+            D[rows] = _getrs(lu, piv, R, trans=1)[0]
+            if slip.size:
+                D[m + slip] = coef[:, None] * D[slip]
+            self.stats.dense_solves += W.shape[1]
+        L += D
+        G = self.indicators(L, W, support=support)
+        Eg = np.abs(self.indicators(D, np.zeros_like(W), support=support))
+        return L, G, Eg
 
     def indicators(self, lam: np.ndarray, w: np.ndarray, support: Optional[np.ndarray] = None) -> np.ndarray:
         """The indicators (17) stacked (a, bp, bm) (3m, or 3m x k for columns) of DirNeu's
@@ -618,7 +638,16 @@ class CondensedSolver:
         if m == 0:
             return np.zeros(0), Z, 1, True
         nu, tp, tm = Z.nu, Z.tp, Z.tm
+        seen = set()
+        last = None
         for k in range(1, int(max_iter) + 1):
+            key = canonical_key(nu, tp, tm, self._F0)
+            if key in seen and key != last:
+                # the iteration returned to earlier sets: it cycles (SSNM is only locally convergent)
+                log.info("SSNM in the multipliers cycles after %d iterations", k - 1)
+                return lam_prev, InactiveSets(nu, tp, tm), k - 1, False
+            seen.add(key)
+            last = key
             lam = self._solve_reduced(self._factor_sets(nu, tp, tm), w)
             self.stats.ssnm_iterations += 1
             if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):

@@ -1,41 +1,55 @@
-"""Exact piecewise-affine path following (no step sizes).
+"""Exact piecewise-affine path following, degenerate points resolved by a lexicographic rule.
 
-On a branch with inactive sets Z fixed, y(alpha) = (1 - alpha) Y1 + alpha Y2 exactly, with
-Y1 = DirNeu(Z, f1), Y2 = DirNeu(Z, f2).  The three indicator vectors of (17)
+On a branch with inactive sets Z fixed, y(alpha) is affine in alpha.  A branch is represented by
+its point and slope at a reference alpha (its entry point): y(alpha) = y_ref + (alpha - alpha_ref)
+y', so it keeps full accuracy near its own alpha range whatever its values at alpha = 0 and 1.
+The three indicator vectors of (17)
 
-    a = lam_n + rho N u,   bp = lam_t + rho T u - F lam_n,   bm = lam_t + rho T u + F lam_n
+    a = lam_n + rho (N u - g),   bp = lam_t + rho T u - F lam_n,   bm = lam_t + rho T u + F lam_n
 
-are linear in y, hence affine in alpha along the branch.  Z is consistent (Remark 3.1) as long
-as every indicator keeps the sign Z requires.  Per node state (``ssnm.STATE_NAMES``) the
-required signs ("constraints" c >= 0, closed) are
+are linear in y, hence affine along the branch.  Per node state the branch is consistent while
+its *constraints* (c >= 0) hold:
 
-    open   : -a >= 0                         (lam_n = lam_t = 0; the sign of T u is irrelevant)
-    stick  :  a >= 0, -bp >= 0, bm >= 0
-    slip+  :  a >= 0,  bp >= 0              (bm = bp + 2 F a >= 0 follows)
-    slip-  :  a >= 0, -bm >= 0              (bp = bm - 2 F a <= 0 follows)
-    F = 0  : slip+ and slip- coincide (tangentially free: a >= 0 only)
+    open   : -a >= 0                       (lam_n = lam_t = 0; the sign of T u is irrelevant)
+    stick  : -bp >= 0, bm >= 0             (a = lam_n >= 0 follows: bm - bp = 2 F a, F > 0)
+    slip+  :  a >= 0,  bp >= 0             (bm = bp + 2 F a >= 0 follows)
+    slip-  :  a >= 0, -bm >= 0             (bp = bm - 2 F a <= 0 follows)
+    F = 0  : open (-a >= 0) or tangentially free (a >= 0); "free" is coded as slip+.
 
-The branch is left at the first root (in the orientation s) of a constraint that decreases
-(ratio test).  At that transition point y*, the states of the nodes whose constraints vanish
-("involved" nodes) are re-decided: a state is admissible at y* iff its constraints hold at y*
-(closed signs) -- which is equivalent to y* = DirNeu(Z', f(alpha*)), so every admissible
-candidate Z' continues y continuously.  A candidate branch y'(alpha) (2 solves) continues the
-path in the direction d = +-1 iff each of its constraints is either positive at alpha* or
-vanishes there with d * slope > 0 (or vanishes identically).  This is decided from values and
-slopes only, with a relative tolerance ``tie_rtol`` on the indicator scale for "vanishes";
-there is no step size.  Exactly one continuation: a "transversal" transition (d = s) or a
-"fold" (d = -s).  Several: a branch point (a ``PathEvent("branch_point")`` lists every
-alternative; :func:`follow_alternative` follows another one later, the path being a tree of
-branches linked by ``Branch.parent`` / ``Branch.origin``).  None: ``PathEvent("dead_end")`` and
-status "stuck".  Revisiting the same (Z, s, alpha): ``PathEvent("cycling")``.
+Each constraint is one side of a facet between two states of its node (the *pivot* table: a
+constraint of stick on bp leads to slip+, a of slip+- to open, bp of slip+ to stick, ...; a of
+an open node to slip+ or slip- by the sign of T u).  The path leaves a branch at the first root
+of a decreasing constraint (ratio test), crosses that facet, and continues on the new branch in
+the direction in which the crossed constraint grows again: forward ("transversal") or back
+("fold").  With all sets regular this is a complementary-pivoting scheme: the solution path is a
+1-manifold, each branch is entered at most once, and a run ends only by leaving the alpha range
+(or by closing a loop, a genuine closed curve of solutions).
 
-Cost: two solves per candidate branch (one factorization of J(Z) with the default PETSc
-backend; with :class:`cfcontact.condensed.CondensedSolver` one factorization of K in total and
-dense 2m x 2m solves per branch).
+Degenerate points (several constraints vanish at one alpha: symmetric problems, regular meshes
+under uniform loads) are resolved by rule, without enumerating state combinations: the load is
+perturbed symbolically, f(alpha) + sum_j eps^j e_j with fixed random load vectors e_j, which
+orders every tie (Lemke's lexicographic rule).  A tie between roots -- decided with a tolerance
+derived from the data's own rounding, never merging roots that rounding can separate -- is
+broken by comparing the constraints' responses to e_1, e_2, ... (one extra solve per branch at
+a degenerate point); one pivot at a time, each new branch checked by its indicators, until a
+branch leaves the point with positive length.  The other continuations of a degenerate point
+(a *branch point*) are found by the opposite perturbation and, at points involving few nodes,
+by enumerating the nodes' admissible states; they are recorded as a ``PathEvent("branch_point")``
+and can be followed (:func:`follow_alternative`, ``trace_exact(..., tree=True)``).
+
+Start: the inactive sets of SSNM's solution at alpha_start (SSNM in the multipliers with the
+condensed backend); when SSNM does not converge (at large F it can cycle), the start is reached
+by the exact method itself along a homotopy from data whose only solution is "every node open"
+(a separating gap with the tangential data held), which provably ends at alpha_start.
+
+Cost: one dense factorization and two solves (three at degenerate points) of the reduced
+system per branch with :class:`cfcontact.condensed.CondensedSolver` (K factored once), or two
+sparse J(Z) solves per branch with the full PETSc backend.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import logging
 import math
@@ -45,64 +59,72 @@ from typing import Optional
 import numpy as np
 
 from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
+from cfcontact.jsonio import jsonable
 from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
-from cfcontact.start import branch_endpoints, check_request, resume_parts, start_point
+from cfcontact.start import check_request, resume_parts, start_point
+from cfcontact.stepper import Stepper
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
 
-#: TIE_RTOL (from :mod:`cfcontact.options`, the default of ``PathOptions.tie_rtol``): the relative
-#: tolerance deciding that an indicator "vanishes" (relative to the largest indicator magnitude of
-#: the branch) or that a slope is zero.
-#: Constraints whose roots lie further apart than this (times 1 + |alpha|) are separate
-#: transitions even when their values at a transition point are within the tolerance.
-ALPHA_WINDOW = 1e-9
-#: At most this many candidate set combinations are examined at one transition point.
-MAX_CANDIDATES = 4096
-#: When SSNM cannot find the start solution, problems with at most this many contact nodes are
-#: started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
+#: TIE_RTOL (:mod:`cfcontact.options`, the default of ``PathOptions.tie_rtol``): the relative
+#: tolerance (on the local size of the indicators and their rates: the multipliers and rho times
+#: the data at the branch's reference point) under which an indicator value or rate counts as
+#: zero, on top of its rounding error measured by iterative refinement (condensed backend; the
+#: full backend, which measures none, uses FULL_BACKEND_RTOL_FACTOR times it).  Roots of two
+#: constraints are one point only when they lie within the uncertainty that this gives each of
+#: them: a few hundred units of rounding, never a fixed share of the scale.
+FULL_BACKEND_RTOL_FACTOR = 100.0
+#: Safety factor on the rounding error of an indicator measured by one step of iterative refinement
+#: (condensed backend): an indicator within that many times its measured error counts as zero.
+ERROR_FACTOR = 16.0
+#: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them).
+PERTURBATION_COLUMNS = 2
+#: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
+PERTURBATION_SEED = 20261201
+#: Degenerate points whose vanishing constraints involve at most this many nodes are
+#: cross-checked by enumerating the nodes' admissible states (all continuations, branch points).
+ENUMERATION_CHECK_NODES = 2
+#: Kept for compatibility (the number of state combinations the enumeration cross-check tries).
+MAX_CANDIDATES = 4 ** ENUMERATION_CHECK_NODES
+#: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
+#: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
 
 OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
-# constraints per state: (indicator 0=a, 1=bp, 2=bm ; sign) meaning sign * indicator >= 0
-_CONS = {
-    (OPEN, False): ((0, -1.0),),
-    (STICK, False): ((0, 1.0), (1, -1.0), (2, 1.0)),
-    (SLIP_P, False): ((0, 1.0), (1, 1.0)),
-    (SLIP_M, False): ((0, 1.0), (2, -1.0)),
-    # F = 0 at the node: tangentially free (slip+ == slip-), stick only with lam_t = 0
-    (OPEN, True): ((0, -1.0),),
-    (STICK, True): ((0, 1.0), (1, -1.0), (2, 1.0)),
-    (SLIP_P, True): ((0, 1.0),),
-    (SLIP_M, True): ((0, 1.0),),
-}
+_A, _BP, _BM = 0, 1, 2
+
+# _CONS_SIGN[state, F == 0, indicator] = sign s of the constraint s * indicator >= 0 (0: none)
+_CONS_SIGN = np.zeros((4, 2, 3))
+for _st, _f0, _ind, _sg in ((OPEN, 0, _A, -1), (STICK, 0, _BP, -1), (STICK, 0, _BM, 1), (SLIP_P, 0, _A, 1),
+                            (SLIP_P, 0, _BP, 1), (SLIP_M, 0, _A, 1), (SLIP_M, 0, _BM, -1),
+                            (OPEN, 1, _A, -1), (SLIP_P, 1, _A, 1)):
+    _CONS_SIGN[_st, _f0, _ind] = _sg
+# _PIVOT[state, F == 0, indicator]: the state across the facet of that constraint (-1: an open
+# node closing with F > 0 slips in the direction of its T u; -2: no such constraint)
+_PIVOT = np.full((4, 2, 3), -2, dtype=np.int8)
+for _st, _f0, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0, _BM, SLIP_M),
+                            (SLIP_P, 0, _A, OPEN), (SLIP_P, 0, _BP, STICK), (SLIP_M, 0, _A, OPEN),
+                            (SLIP_M, 0, _BM, STICK), (OPEN, 1, _A, SLIP_P), (SLIP_P, 1, _A, OPEN)):
+    _PIVOT[_st, _f0, _ind] = _to
+# membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
+_SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
 
 
 def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
-    """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices:
-    an open node is tangentially free, a node with F = 0 that is tangentially free is slip+."""
+    """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices: an open
+    node is tangentially free, and a node with F = 0 is open or free (coded slip+; its stick state
+    gives the same solution when consistent, lam_t = 0)."""
     F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
     codes = sets.state_codes().astype(np.int8)  # tp & tm -> 2 (slip+)
-    codes = np.where((codes == SLIP_M) & (F == 0.0), SLIP_P, codes)
-    return codes.astype(np.int8)
-
-
-# membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
-_SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
+    return np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes).astype(np.int8)
 
 
 def sets_from_codes(codes) -> InactiveSets:
     table = _SETS_OF_CODE[np.asarray(codes)]  # m x 3
     return InactiveSets(table[:, 0], table[:, 1], table[:, 2])
-
-
-# _CONS as a table: _CONS_SIGN[state, F == 0, indicator] = sign of that constraint (0: none)
-_CONS_SIGN = np.zeros((4, 2, 3))
-for (_st, _f0), _cs in _CONS.items():
-    for _ind, _sg in _cs:
-        _CONS_SIGN[_st, int(_f0), _ind] = _sg
 
 
 def state_constraints(codes, F0) -> tuple:
@@ -115,26 +137,53 @@ def state_constraints(codes, F0) -> tuple:
     return ind * m + nodes, table[nodes, ind], nodes
 
 
+def _digest(key: bytes) -> bytes:
+    return hashlib.blake2b(key, digest_size=16).digest()
+
+
+class _Unresolved(Exception):
+    """A degenerate point the lexicographic rule could not resolve (kind, message, data)."""
+
+    def __init__(self, kind, message, data=None):
+        super().__init__(message)
+        self.kind, self.data = kind, data or {}
+
+
 class _Line:
-    """One candidate branch: sets, y(alpha) = (1-alpha) Y1 + alpha Y2, its constraints.
+    """One branch (sets fixed): multipliers, indicators and constraints, affine in alpha.
 
-    The multipliers (lam_n, lam_t) at alpha = 0 and 1 and the indicators are always at hand;
-    the whole Y1, Y2 (with u) are formed when first needed (with the condensed backend that
-    costs O(n m), so only branches the path takes pay it)."""
+    Reference form: at alpha_ref the multipliers ``lam`` and indicators ``g`` (3m), their rates
+    ``dlam`` and ``dg`` per unit alpha; the constraints' values ``c`` and rates ``dc`` at alpha_ref.
+    ``tol_v`` and ``tol_s``: what counts as zero for a value at alpha_ref and for a rate."""
 
-    def __init__(self, codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=None):
-        self.codes, self._sets = codes, sets  # sets: None = formed from codes when first needed
-        self.key = codes.tobytes()  # identity of the line (its canonical state codes, _Context.key)
-        self.source = source  # backend forming u on demand (lazy branches of the path), or None
-        self.lam1, self.lam2 = lam1, lam2
-        self.g1, self.g2 = g1, g2
-        self.c1, self.c2 = csgn * g1[cidx], csgn * g2[cidx]  # constraint values at alpha = 0 and 1
-        self.slopes = self.c2 - self.c1
-        self.cidx, self.cnode = cidx, cnode
-        self.gmax1 = float(np.abs(g1).max()) if g1.size else 0.0
-        self.gmax2 = float(np.abs(g2).max()) if g2.size else 0.0
+    __slots__ = ("codes", "key", "alpha", "lam", "dlam", "g", "dg", "cidx", "csgn", "cnode", "c", "dc",
+                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source")
+
+    def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
+                 source=None, eg=None):
+        self.codes, self.key, self.alpha = codes, key, float(alpha)
+        self.lam, self.dlam, self.g, self.dg = lam, dlam, g, dg
+        self.cidx, self.csgn, self.cnode = state_constraints(codes, F0_index)
+        self.c = self.csgn * g[self.cidx]
+        self.dc = self.csgn * dg[self.cidx]
+        self.scale = scale_v
+        # what counts as zero for each indicator value / rate: the local size times rtol, plus the
+        # measured rounding error (eg: 3m x 2, from iterative refinement) times a safety factor
+        self.ind_tv = rtol * scale_v + 1e-300
+        self.ind_ts = rtol * scale_s + 1e-300
+        if eg is not None:
+            self.ind_tv = self.ind_tv + ERROR_FACTOR * eg[:, 0]
+            self.ind_ts = self.ind_ts + ERROR_FACTOR * eg[:, 1]
+            self.tol_v = self.ind_tv[self.cidx]
+            self.tol_s = self.ind_ts[self.cidx]
+        else:
+            self.tol_v = np.full(self.cidx.size, self.ind_tv)
+            self.tol_s = np.full(self.cidx.size, self.ind_ts)
+        self.P = None  # indicator responses to the perturbation loads (3m x J), when needed
+        self._sets = None
+        self._Y = None  # (Y_ref, dY) with u, when formed
         self._full = full
-        self._Y = None
+        self.source = source  # backend forming u on demand (lazy branches of the path), or None
 
     @property
     def sets(self) -> InactiveSets:
@@ -142,426 +191,851 @@ class _Line:
             self._sets = sets_from_codes(self.codes)
         return self._sets
 
-    @property
-    def Y1(self):
-        if self._Y is None:
-            self._Y = self._full()
-        return self._Y[0]
-
-    @property
-    def Y2(self):
-        if self._Y is None:
-            self._Y = self._full()
-        return self._Y[1]
-
-    def y(self, alpha):
-        return (1.0 - alpha) * self.Y1 + alpha * self.Y2
-
-    def lam(self, alpha):
-        return (1.0 - alpha) * self.lam1 + alpha * self.lam2
-
-    def indicators(self, alpha):
-        return (1.0 - alpha) * self.g1 + alpha * self.g2
-
     def values(self, alpha):
-        return (1.0 - alpha) * self.c1 + alpha * self.c2
+        return self.c + (alpha - self.alpha) * self.dc
 
-    def tol_v(self, alpha, rtol):
-        return rtol * (abs(1.0 - alpha) * self.gmax1 + abs(alpha) * self.gmax2) + 1e-300
+    def lam_at(self, alpha):
+        return self.lam + (alpha - self.alpha) * self.dlam
 
-    def tol_s(self, rtol):
-        return rtol * (self.gmax1 + self.gmax2) + 1e-300
+    def ind_at(self, alpha):
+        return self.g + (alpha - self.alpha) * self.dg
+
+    def ind_tol(self, alpha):
+        """What counts as zero for each indicator at alpha (scalar or 3m)."""
+        return self.ind_tv + abs(alpha - self.alpha) * self.ind_ts
+
+    def endpoints(self):
+        """(lam1, lam2, g1, g2): multipliers and indicators at alpha = 0 and 1 (storage form)."""
+        a = self.alpha
+        return (self.lam - a * self.dlam, self.lam + (1.0 - a) * self.dlam,
+                self.g - a * self.dg, self.g + (1.0 - a) * self.dg)
+
+    def Y(self):
+        """(Y_ref, dY) = (y(alpha_ref), y') with displacements (formed once)."""
+        if self._Y is None:
+            self._Y = self._full()
+        return self._Y
+
+    def position(self, node, ind):
+        """Index in the constraint list of node's constraint on indicator ``ind`` (or -1)."""
+        j = np.flatnonzero((self.cnode == node) & (self.cidx == ind * self.codes.size + node))
+        return int(j[0]) if j.size else -1
 
 
+# ------------------------------------------------------------------ backends
+class _CondensedData:
+    """Branch data from the condensed backend: multipliers and indicators in O(m^2) per branch."""
+
+    def __init__(self, solver, W):
+        self.solver = solver
+        self.w1, self.w2 = np.array(W[:, 0]), np.array(W[:, 1])
+        self.dw = self.w2 - self.w1
+        self.rho = solver.system.rho
+        self.WE = None  # perturbation data B K^-1 E (2m x J)
+
+    def line(self, codes, key, alpha):
+        w = (1.0 - alpha) * self.w1 + alpha * self.w2
+        L, G, Eg = self.solver.branch_data(np.column_stack([w, self.dw]), key, codes, refine=True)
+        scale_v = np.abs(L[:, 0]).max(initial=0.0) + self.rho * np.abs(w).max(initial=0.0)
+        scale_s = np.abs(L[:, 1]).max(initial=0.0) + self.rho * np.abs(self.dw).max(initial=0.0)
+        solver = self.solver
+        lam, dlam = L[:, 0], L[:, 1]
+
+        def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
+            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0])
+            return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
+
+        return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
+
+    def perturbation(self, line, E_loads):
+        """Indicator responses (3m x J) of the branch to the perturbation loads."""
+        if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
+            solver = self.solver
+            zero = solver.load_data_many([np.zeros(solver.n)])[:, 0]  # -(g; 0) when the system has a gap
+            self.WE = solver.load_data_many([E_loads[:, j] for j in range(E_loads.shape[1])]) - zero[:, None]
+        WE = self.WE[:, :E_loads.shape[1]]
+        _, G = self.solver.branch_data(WE, line.key, line.codes)
+        return G
+
+
+class _FullData:
+    """Branch data from the full PETSc backend (J(Z) factored per branch): the reference."""
+
+    def __init__(self, system, solver):
+        self.system, self.solver = system, solver
+        self.f1, self.f2 = system.loads_numpy()
+        self.df = self.f2 - self.f1
+        self.n = system.n
+
+    def _ind(self, y):
+        return np.concatenate(indicators(self.system, y))
+
+    def line(self, codes, key, alpha):
+        sets = sets_from_codes(codes)
+        f = (1.0 - alpha) * self.f1 + alpha * self.f2
+        Y = self.solver.solve(sets, f)
+        Yp = self.solver.solve(sets, f + self.df)  # y(alpha + 1): y' without assuming linearity in f
+        dY = Yp - Y
+        g = self._ind(Y)
+        dg = self._ind(Yp) - g
+        n, rho = self.n, self.system.rho
+        scale_v = np.abs(Y[n:]).max(initial=0.0) + rho * np.abs(self.system.contact_maps()[0] @ Y[:n]).max(
+            initial=0.0) + np.abs(g).max(initial=0.0)
+        scale_s = np.abs(dY[n:]).max(initial=0.0) + np.abs(dg).max(initial=0.0)
+        return Y[n:], dY[n:], g, dg, scale_v, scale_s, (lambda: (Y, dY)), None, None
+
+    def perturbation(self, line, E_loads):
+        sets = line.sets
+        f = (1.0 - line.alpha) * self.f1 + line.alpha * self.f2
+        Y0 = line.Y()[0]
+        g0 = self._ind(Y0)
+        cols = [self._ind(self.solver.solve(sets, f + E_loads[:, j])) - g0 for j in range(E_loads.shape[1])]
+        return np.column_stack(cols)
+
+
+# ------------------------------------------------------------------ context
 class _Context:
-    def __init__(self, system, solver, opts, lo, hi, rtol, callback=None):
+    """What one run needs: system, backend, options, alpha range, caches, visited branches."""
+
+    def __init__(self, system, solver, opts, lo, hi, rtol, W=None, callback=None):
         self.system, self.solver, self.opts, self.callback = system, solver, opts, callback
         self.lo, self.hi, self.rtol = lo, hi, rtol
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
-        self.F0_index = self.F0.astype(np.intp)  # second index of _CONS_SIGN
+        self.F0_index = self.F0.astype(np.intp)
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
-        self.visited: dict = {}
-        self.lines: dict = {}  # canonical key -> _Line (re-used at branch points / alternatives)
-        self._W = None  # condensed backend: (w1, w2) = B K^-1 (f1, f2)
+        if hasattr(solver, "branch_data"):
+            if W is None:
+                W = solver.load_data_many([self.f1, self.f2])
+            self.data = _CondensedData(solver, W)
+            self.condensed = True
+        else:
+            self.data = _FullData(system, solver)
+            self.condensed = False
+        self.visited: dict = {}  # digest of canonical codes -> (orientation, alpha) of its first entry
+        self._lines: dict = {}  # (key, alpha) -> _Line, for the current transition point
+        self.E = None  # perturbation loads (n x J)
+        self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
+                      "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0}
 
-    def prepare_loads(self):
-        """Condensed backend: w1, w2 = B K^-1 (f1, f2) in one two-column solve."""
-        if self._W is None and hasattr(self.solver, "load_data_many"):
-            self._W = self.solver.load_data_many([self.f1, self.f2])
-
-    def _condensed_indicators(self, lam, w):
-        m, rho = self.m, self.system.rho
-        Bu = w - self.solver.S @ lam
-        b = lam[m:] + rho * Bu[m:]
-        return np.concatenate([lam[:m] + rho * Bu[:m], b - self.Fv * lam[:m], b + self.Fv * lam[:m]])
-
-    def key(self, codes):
-        return np.asarray(codes, dtype=np.int8).tobytes()
-
-    def line(self, codes) -> _Line:
+    def line(self, codes, alpha) -> _Line:
         codes = np.asarray(codes, dtype=np.int8)
-        k = codes.tobytes()  # = self.key(codes)
-        ln = self.lines.get(k)
+        key = codes.tobytes()
+        ck = (key, float(alpha))
+        ln = self._lines.get(ck)
         if ln is not None:
             return ln
-        system, solver, n = self.system, self.solver, self.system.n
-        cidx, csgn, cnode = state_constraints(codes, self.F0_index)
-        if hasattr(solver, "branch_data"):
-            # condensed backend: both loads with one LU and no u (formed on demand by the path);
-            # the sets are passed as their codes (InactiveSets formed only for branches taken)
-            if self._W is None:
-                self.prepare_loads()
-            L, G = solver.branch_data(self._W, b"exact:" + k, codes)
-            lam1, lam2, g1, g2 = L[:, 0], L[:, 1], G[:, 0], G[:, 1]
-
-            def full(lam1=lam1, lam2=lam2):
-                U = solver.displacements(np.column_stack([lam1, lam2]), [0.0, 1.0])
-                return np.concatenate([U[:, 0], lam1]), np.concatenate([U[:, 1], lam2])
-
-            ln = _Line(codes, None, lam1, lam2, g1, g2, cidx, csgn, cnode, full, source=solver)
-        elif hasattr(solver, "multipliers") and hasattr(solver, "load_data"):
-            # condensed backend: multipliers and indicators in O(m^2), u only when needed
-            sets = sets_from_codes(codes)
-            w1, w2 = solver.load_data(self.f1), solver.load_data(self.f2)
-            lam1, lam2 = solver.multipliers(sets, w1), solver.multipliers(sets, w2)
-            g1, g2 = self._condensed_indicators(lam1, w1), self._condensed_indicators(lam2, w2)
-
-            def full(lam1=lam1, lam2=lam2):
-                return (np.concatenate([solver.displacement(self.f1, lam1), lam1]),
-                        np.concatenate([solver.displacement(self.f2, lam2), lam2]))
-
-            ln = _Line(codes, sets, lam1, lam2, g1, g2, cidx, csgn, cnode, full,
-                       source=solver if hasattr(solver, "displacements") else None)
-        else:
-            sets = sets_from_codes(codes)
-            Y1, Y2 = branch_endpoints(system, solver, sets)
-            g1 = np.concatenate(indicators(system, Y1))
-            g2 = np.concatenate(indicators(system, Y2))
-            ln = _Line(codes, sets, Y1[n:], Y2[n:], g1, g2, cidx, csgn, cnode, lambda: (Y1, Y2))
-        if len(self.lines) > 256:
-            self.lines.clear()
-        self.lines[k] = ln
+        lam, dlam, g, dg, sv, ss, full, source, eg = self.data.line(codes, b"exact:" + key, alpha)
+        rtol = self.rtol if eg is not None else FULL_BACKEND_RTOL_FACTOR * self.rtol
+        ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg)
+        if len(self._lines) > 64:
+            self._lines.clear()
+        self._lines[ck] = ln
         return ln
+
+    def perturbation_rows(self, ln: _Line, J: int) -> np.ndarray:
+        """The constraints' responses to the first J perturbation loads (k x J)."""
+        if ln.P is None or ln.P.shape[1] < J:
+            n = self.system.n
+            if self.E is None or self.E.shape[1] < J:
+                rng = np.random.default_rng(PERTURBATION_SEED)
+                scale = max(np.abs(self.f1).max(initial=0.0), np.abs(self.f2).max(initial=0.0), 1e-300)
+                self.E = scale * rng.standard_normal((n, max(J, PERTURBATION_COLUMNS)))
+            ln.P = self.data.perturbation(ln, self.E[:, :J])
+            self.stats["perturbation_solves"] += J
+        return ln.csgn[:, None] * ln.P[ln.cidx, :J]
+
+    def indicator_perturbation(self, ln: _Line, flat_index: int, J: int) -> np.ndarray:
+        self.perturbation_rows(ln, J)
+        return ln.P[flat_index, :J]
+
+
+# ------------------------------------------------------------------ lexicographic helpers
+def _lex_argmin(rows, rtol=1e-9):
+    """Index of the lexicographically smallest row (k x J), or None if the first J columns tie."""
+    cand = np.arange(rows.shape[0])
+    for j in range(rows.shape[1]):
+        col = rows[cand, j]
+        lo = col.min()
+        tol = rtol * max(np.abs(col).max(), 1e-300)
+        cand = cand[col <= lo + tol]
+        if cand.size == 1:
+            return int(cand[0])
+    return None
+
+
+def _lex_sign(vec, rtol=1e-9, scale=None):
+    """Sign of the first component of vec that is not zero (relative to ``scale``), 0 if none."""
+    sc = np.abs(vec).max(initial=0.0) if scale is None else scale
+    for v in vec:
+        if abs(v) > rtol * max(sc, 1e-300):
+            return 1 if v > 0 else -1
+    return 0
+
+
+def _lexmin_with_more_columns(ctx, compute, k):
+    """compute(J) -> rows (k x J); the lexicographic argmin, adding perturbation columns until the
+    rows differ (at most 2m + 1 columns: the rows are linearly independent in exact arithmetic)."""
+    J = PERTURBATION_COLUMNS
+    limit = 2 * ctx.m + 1
+    while True:
+        rows = compute(J)
+        i = _lex_argmin(rows)
+        if i is not None:
+            return i
+        if J >= limit:
+            return 0  # unresolvable within rounding: any choice is as good
+        J = min(limit, 4 * J)
 
 
 # ------------------------------------------------------------------ ratio test
 def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
-    """First alpha (from alpha0 in direction s) where a decreasing constraint of ln vanishes.
+    """First alpha from alpha0 (on ln, direction s) where a decreasing constraint vanishes.
 
-    Returns (alpha_exit, vanishing constraint positions: a sorted list) or (None, None) when no
-    constraint vanishes before the end of the alpha range."""
-    sl = ln.slopes
-    tol_s = ln.tol_s(ctx.rtol)
-    dec = ((sl < -tol_s) if s > 0 else (sl > tol_s)).nonzero()[0]  # s * slope < -tol_s
+    Returns (alpha*, tied constraint positions, uncertainty of alpha*) or (None, None, None) when
+    none vanishes before the end of the alpha range.  Roots that lie within their rounding
+    uncertainty of the first one are tied (the same point); every other root is a later, separate
+    transition."""
+    sdc = s * ln.dc
+    dec = (sdc < -ln.tol_s).nonzero()[0]
     if not dec.size:
-        return None, None
-    c1, c2 = ln.c1[dec], ln.c2[dec]
-    roots = c1 / (c1 - c2)
-    dist = np.maximum((roots - alpha0) if s > 0 else (alpha0 - roots), 0.0)  # s * (roots - alpha0), >= 0
-    j = int(dist.argmin())
-    dj = float(dist[j])
-    a_star = alpha0 + s * dj if dj == 0.0 else float(roots[j])
+        return None, None, None
+    rate = -sdc[dec]
+    t = (ln.c[dec] + (alpha0 - ln.alpha) * ln.dc[dec]) / rate  # distance from alpha0
+    np.maximum(t, 0.0, out=t)
+    j = int(t.argmin())
+    a_star = alpha0 + s * float(t[j])
     bound = ctx.hi if s > 0 else ctx.lo
     if s * (a_star - bound) >= 0:
-        return None, None
-    vals = ln.values(a_star)
-    vanish = (np.abs(vals) <= ln.tol_v(a_star, ctx.rtol)).nonzero()[0].tolist()
-    first = int(dec[j])
-    if first not in vanish:
-        vanish = sorted(vanish + [first])
-    return float(a_star), vanish
+        return None, None, None
+    err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate  # uncertainty of each root
+    tied = dec[(t - t[j]) <= err + err[j]]
+    return a_star, tied, float(err[j])
+
+
+# ------------------------------------------------------------------ pivoting
+def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 1, start: bool = False):
+    """Cross the transition point a_star of branch (ln, s), whose constraints ``tied`` vanish there,
+    one facet at a time by the lexicographic rule of the perturbation sign * eps.
+
+    Returns (line, direction, pivots, e): the branch leaving the point with positive length and the
+    position of the constraint by which it was entered.  ``start``:
+    ln is the start branch at a_star = alpha_start (the point itself is not perturbed).
+    Raises _Unresolved."""
+    m = ctx.m
+    cur, d = ln, s
+    visited = {(cur.key, d)}
+    pivots = []
+    # the first leaving constraint: the lexicographically first root on ln
+    if len(tied) == 1:
+        k = int(tied[0])
+    else:
+        rates = np.abs(cur.dc[tied])
+        k = int(tied[_lexmin_with_more_columns(
+            ctx, lambda J: sign * ctx.perturbation_rows(cur, J)[tied] / rates[:, None], len(tied))])
+
+    def offset_leaving(line, k):
+        """delta(J): the lexicographic offset of the point where ``line`` leaves through k."""
+        if start:
+            return lambda J: np.zeros(J)
+        return lambda J: -(sign * ctx.perturbation_rows(line, J)[k]) / line.dc[k]
+
+    def offset_entering(line, e):
+        """delta(J): the lexicographic offset of the vertex where ``line`` is entered through e."""
+        return lambda J: -(sign * ctx.perturbation_rows(line, J)[e]) / line.dc[e]
+
+    delta = offset_leaving(cur, k)  # offset of the vertex we are at, as a function of J
+    repair = False  # is k a constant constraint that is negative in the perturbation (not a root)?
+    for _ in range(max(64, 8 * m)):
+        node = int(cur.cnode[k])
+        ind = int(cur.cidx[k]) // m
+        old = int(cur.codes[node])
+        new = int(_PIVOT[old, ctx.F0_index[node], ind])
+        if new == -2:
+            raise _Unresolved("degenerate", f"no facet for constraint {SET_NAMES[ind]} of node {node} ({STATE_NAMES[old]})")
+        if new == -1:  # an open node closes: it slips in the direction of its T u (bp = bm = rho T u here)
+            b = float(cur.g[m + node] + (a_star - cur.alpha) * cur.dg[m + node])
+            btol = cur.ind_tol(a_star)
+            if abs(b) > (btol if np.isscalar(btol) else btol[m + node]):
+                new = SLIP_P if b > 0 else SLIP_M
+            else:
+                J = PERTURBATION_COLUMNS
+                while True:
+                    Pb = sign * ctx.indicator_perturbation(cur, m + node, J)
+                    sg = _lex_sign(cur.dg[m + node] * delta(J) + Pb)
+                    if sg or J > 2 * m:
+                        break
+                    J *= 4
+                new = SLIP_P if sg >= 0 else SLIP_M
+        codes = cur.codes.copy()
+        codes[node] = new
+        try:
+            nxt = ctx.line(codes, a_star)
+        except SingularSystemError as exc:
+            raise _Unresolved("singular", f"the branch across the facet is singular: {exc}",
+                              {"node": node, "from": STATE_NAMES[old], "to": STATE_NAMES[new]}) from None
+        e = nxt.position(node, ind)
+        de = float(nxt.dc[e]) if e >= 0 else 0.0
+        if e >= 0 and abs(de) > nxt.tol_s[e]:
+            d = 1 if de > 0 else -1
+            delta = offset_entering(nxt, e)
+        elif not repair or e < 0:
+            raise _Unresolved("singular", f"the branch across the facet of node {node} ({STATE_NAMES[old]} -> "
+                              f"{STATE_NAMES[new]}) does not move alpha (rate {de:.3g})",
+                              {"node": node, "from": STATE_NAMES[old], "to": STATE_NAMES[new]})
+        # else: a constant constraint crossed at the same vertex (two codes of nearly one line):
+        # orientation and vertex offset stay
+        pivots.append({"node": node, "set": SET_NAMES[ind], "from": STATE_NAMES[old], "to": STATE_NAMES[new],
+                       "orientation": d})
+        if (nxt.key, d) in visited:
+            raise _Unresolved("cycling", "the lexicographic pivots return to a branch already crossed at this point",
+                              {"pivots": pivots})
+        visited.add((nxt.key, d))
+        ctx.stats["pivots"] += 1
+        # constraints of nxt that vanish at a_star (its reference point) and do not grow in d
+        zero = np.abs(nxt.c) <= nxt.tol_v
+        if e >= 0:
+            zero[e] = False
+        rate = d * nxt.dc
+        cand = zero & (rate <= nxt.tol_s)
+        if not cand.any():
+            return nxt, d, pivots, e
+        dec = cand & (rate < -nxt.tol_s)
+        flat = (cand & ~dec).nonzero()[0]
+        repair = False
+        if flat.size:
+            # constant (within rounding) and zero: the perturbation decides whether it holds here
+            J = PERTURBATION_COLUMNS
+            P = sign * ctx.perturbation_rows(nxt, J)
+            v = nxt.dc[flat, None] * delta(J)[None, :] + P[flat]
+            neg = [i for i in range(flat.size) if _lex_sign(v[i]) < 0]
+            if neg:
+                k = int(flat[neg[_lex_argmin(v[neg]) or 0]])
+                repair = True
+                cur = nxt
+                continue
+        D = dec.nonzero()[0]
+        if not D.size:
+            return nxt, d, pivots, e
+        if D.size == 1:
+            k = int(D[0])
+        else:
+            rates = np.abs(nxt.dc[D])
+
+            def rows(J, nxt=nxt, D=D, rates=rates, delta=delta):
+                P = sign * ctx.perturbation_rows(nxt, J)
+                return (nxt.dc[D, None] * delta(J)[None, :] + P[D]) / rates[:, None]
+
+            k = int(D[_lexmin_with_more_columns(ctx, rows, D.size)])
+        cur = nxt
+    raise _Unresolved("degenerate", f"more than {max(64, 8 * m)} pivots at one point", {"pivots": pivots})
 
 
 def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
     """States of ``node`` whose (closed) constraints hold at the indicator values g_star (3m)."""
     m = ctx.m
-    f0 = bool(ctx.F0[node])
-    g = (float(g_star[node]), float(g_star[m + node]), float(g_star[2 * m + node]))  # a, bp, bm
+    f0 = int(ctx.F0_index[node])
+    g = (float(g_star[node]), float(g_star[m + node]), float(g_star[2 * m + node]))
     out = []
-    for st in (OPEN, STICK, SLIP_P, SLIP_M):
-        if st == SLIP_M and f0:
-            continue  # same as slip+ (free) when F = 0
-        for ind, sg in _CONS[(st, f0)]:
-            if not sg * g[ind] >= -tol:
-                break
-        else:  # every constraint holds
+    for st in ((OPEN, SLIP_P) if f0 else (OPEN, STICK, SLIP_P, SLIP_M)):
+        signs = _CONS_SIGN[st, f0]
+        if all(signs[i] * g[i] >= -tol for i in range(3) if signs[i]):
             out.append(st)
     return out
 
 
-def _valid_directions(ctx: _Context, ln: _Line, alpha: float) -> tuple:
-    """(valid for d = +1, valid for d = -1): is the branch ln consistent on [alpha, alpha + d*eps]
-    for some eps > 0?  Decided from values and slopes: every constraint must be positive at alpha
-    or vanish there and not decrease in the direction d."""
-    vals = ln.values(alpha)
-    tv = ln.tol_v(alpha, ctx.rtol)
-    window = ALPHA_WINDOW * (1.0 + abs(alpha))
-    # The constraints that vanish at alpha, up to rounding, decide by their slopes: a value within
-    # tv, or -- for a steep constraint -- a value whose own root lies within the alpha window.  A
-    # steep constraint (e.g. rho N u of a node that just opened, on a stiff/soft bimaterial model)
-    # evaluated at the transition alpha of another line misses zero by its slope times the
-    # rounding error of that alpha, with either sign (it differed between Debian 12 and 13).
-    # Negative values beyond that are violations.
-    reach = tv + np.abs(ln.slopes) * window
-    zero = (vals <= reach).nonzero()[0]
-    if not zero.size:
-        return True, True
-    vz, sz, rz = vals[zero], ln.slopes[zero], reach[zero]
-    if (vz < -rz).any():
+def _directions(ln: _Line) -> tuple:
+    """(valid for d = +1, valid for d = -1): is ln consistent on [alpha_ref, alpha_ref + d eps] for
+    some eps > 0 (from its values and rates at its reference point)?"""
+    neg = ln.c < -ln.tol_v
+    if neg.any():
         return False, False
-    vz, sz = vz.tolist(), sz.tolist()
-    ts = ln.tol_s(ctx.rtol)
-    valid = [True, True]
-    # few constraints vanish at once: plain floats are cheaper than array operations here
-    for v, sl in zip(vz, sz):
-        for k, d in enumerate((1, -1)):
-            dsl = d * sl
-            if v < -tv:  # negative: valid in direction d only if it turns positive within the window
-                if not (dsl > ts and -v <= dsl * window + tv):
-                    valid[k] = False
-                continue
-            # A positive value that reaches zero only beyond the alpha window ahead is a separate,
-            # later transition (a near-tie on a fine mesh: the value tolerance is relative to the
-            # largest indicator), not a constraint vanishing here; within the window it vanishes.
-            ahead = v > 0.0 and dsl < -ts and v > -dsl * window
-            if not (ahead or dsl > ts or abs(dsl) <= ts):
-                valid[k] = False
-    return valid[0], valid[1]
+    zero = ln.c <= ln.tol_v
+    if not zero.any():
+        return True, True
+    dz, tz = ln.dc[zero], ln.tol_s[zero]
+    return bool((dz >= -tz).all()), bool((dz <= tz).all())
 
 
-def _same_line(a: _Line, b: _Line, rtol=1e-10) -> bool:
-    """Same y(alpha) (the multipliers determine u for a given load)."""
-    sc = max(np.abs(a.lam1).max(initial=0), np.abs(a.lam2).max(initial=0), 1e-300)
-    return bool(np.abs(a.lam1 - b.lam1).max(initial=0) <= rtol * sc
-                and np.abs(a.lam2 - b.lam2).max(initial=0) <= rtol * sc)
+def _same_line(a: _Line, b: _Line, rtol=1e-9) -> bool:
+    """Same y(alpha) near the common point (the multipliers determine u for a given load)."""
+    sc = max(np.abs(a.lam).max(initial=0), np.abs(a.dlam).max(initial=0), 1e-300)
+    return bool(np.abs(a.lam_at(b.alpha) - b.lam).max(initial=0) <= rtol * sc
+                and np.abs(a.dlam - b.dlam).max(initial=0) <= rtol * max(sc, np.abs(b.dlam).max(initial=0)))
 
 
-def _continuations(ctx: _Context, ln: _Line, alpha: float, s: int, vanish) -> tuple:
-    """Every (line, direction) continuing the path at the transition point alpha of branch (ln, s)."""
-    lam_star = ln.lam(alpha)
-    g_star = ln.indicators(alpha)  # indicators are linear in y
-    tol = ln.tol_v(alpha, ctx.rtol)
-    nodes = sorted(set(ln.cnode[vanish].tolist()))
-    choices = [_admissible_states(ctx, g_star, i, tol) for i in nodes]
-    total = math.prod(len(c) for c in choices) if choices else 0
-    info = {"nodes": nodes, "admissible": {i: [STATE_NAMES[c] for c in ch] for i, ch in zip(nodes, choices)},
-            "candidates": total}
-    if total > MAX_CANDIDATES:
-        return None, info
-    current = ln.codes[nodes].tolist()  # the states of ln at these nodes
-    combos = list(itertools.product(*choices))
-    # fewest changed nodes first (deterministic preference)
-    combos.sort(key=lambda cb: sum(c != o for c, o in zip(cb, current)))
+def _enumerated_continuations(ctx: _Context, ln: _Line, s: int, a_star: float, nodes) -> list:
+    """Every (line, direction) continuing (ln, s) at a_star found by trying the admissible states of
+    ``nodes`` (the cross-check of small degenerate points)."""
+    g_star = ln.ind_at(a_star)
+    tol = np.broadcast_to(ln.ind_tol(a_star), (3 * ctx.m,))
+    m = ctx.m
+    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])) for i in nodes]
+    lam_star = ln.lam_at(a_star)
+    lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
     out = []
-    lsc = max(np.abs(lam_star).max(initial=0), ln.tol_v(alpha, 1.0), 1e-300)
-    for cb in combos:
+    current = [int(ln.codes[i]) for i in nodes]
+    for cb in itertools.product(*choices):
         if list(cb) == current:
-            continue  # ln itself
+            continue
         codes = ln.codes.copy()
         codes[nodes] = cb
         try:
-            cand = ctx.line(codes)
-        except SingularSystemError as exc:
-            log.info("alpha=%.12g: candidate %s skipped: %s", alpha, sets_from_codes(codes), exc)
+            cand = ctx.line(codes, a_star)
+        except SingularSystemError:
             continue
-        if np.abs(cand.lam(alpha) - lam_star).max(initial=0) > 1e-6 * lsc:
-            log.info("alpha=%.12g: candidate %s does not pass through the transition point; skipped",
-                     alpha, cand.sets)
-            continue
-        valid = _valid_directions(ctx, cand, alpha)
-        for d in (s, -s):
-            if not valid[0 if d > 0 else 1]:
+        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc:
+            continue  # does not pass through the transition point
+        fwd, bwd = _directions(cand)
+        for d, ok in ((s, fwd if s > 0 else bwd), (-s, bwd if s > 0 else fwd)):
+            if not ok:
                 continue
             if d == -s and _same_line(cand, ln):
-                continue  # the incoming branch itself (equivalent sets)
+                continue  # the incoming branch itself
             if any(dd == d and _same_line(cand, other) for other, dd in out):
                 continue
             out.append((cand, d))
-    return out, info
+    return out
 
 
 # ---------------------------------------------------------------------- driver
 def _add_branch(path, ln: _Line, s: int, **kw):
-    """Add ln to the path: lazily (multipliers, indicators; u formed on demand) with a backend
-    that forms displacements in batches, else with its end points Y1, Y2."""
+    """Add ln to the path: lazily (multipliers, indicators; u formed on demand) with a backend that
+    forms displacements in batches, else with its end points Y1, Y2."""
     if ln.source is not None and ln._Y is None:
-        return path.add_branch(ln.sets, s, None, None, multipliers=(ln.lam1, ln.lam2), indicators=(ln.g1, ln.g2),
-                               source=ln.source, **kw)
-    return path.add_branch(ln.sets, s, ln.Y1, ln.Y2, **kw)
+        return path.add_branch(ln.sets, s, None, None, multipliers=(ln.lam, ln.dlam), indicators=(ln.g, ln.dg),
+                               source=ln.source, reference=ln.alpha, **kw)
+    Yr, dY = ln.Y()
+    return path.add_branch(ln.sets, s, Yr, dY, reference=ln.alpha, **kw)
 
 
-def _finish(path, solver, stats0, t0, status, before=None):
-    if path.lazy and getattr(solver, "size", 1) > 1:
-        path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
-    path.status = status
-    before = before or {}  # stats of the stopped run a resumed run continues
-    st = solver.stats.as_dict()
-    path.stats = {k: st[k] - stats0.get(k, 0) + before.get(k, 0) for k in st}
-    path.stats["wall_time"] = time.perf_counter() - t0 + before.get("wall_time", 0.0)
-    log.info("exact path: %s", path)
-    return path
+def _vanishing(ctx, ln, idx):
+    m = ctx.m
+    return [{"node": int(ln.cnode[j]), "set": SET_NAMES[int(ln.cidx[j]) // m]} for j in idx]
 
 
-def _run(ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, y_enter, parent=None, origin=None,
-         budget=None, resume_branch=None, n_trans0=None) -> str:
-    """Follow the path from (ln, s) entered at alpha; appends to ``path``; returns the status.
+def _changes(ln, nxt, vanishing):
+    changes, seen = [], set()
+    for ch in vanishing:
+        i = ch["node"]
+        if i in seen:
+            continue
+        seen.add(i)
+        changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
+    for i in (nxt.codes != ln.codes).nonzero()[0].tolist():
+        if i not in seen:
+            changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],
+                            "to": STATE_NAMES[int(nxt.codes[i])]})
+    return changes
 
-    resume_branch: continue on this branch of ``path`` (sets of ln, orientation s, entered at
-    alpha, its entry point already stored and passed to the callback) instead of adding one;
-    n_trans0: the transition count the ``max_transitions`` budget counts from (default: now).
-    When the callback stops the run, ``path.resume_state`` holds what :func:`_resume` needs."""
-    system, opts = ctx.system, ctx.opts
-    if resume_branch is None:
+
+def _shift(ln: _Line, delta: float):
+    """Move the reference point of ln by delta along the branch (a small correction)."""
+    ln.alpha += delta
+    ln.lam = ln.lam + delta * ln.dlam
+    ln.g = ln.g + delta * ln.dg
+    ln.c = ln.c + delta * ln.dc
+    if ln._Y is not None:
+        ln._Y = (ln._Y[0] + delta * ln._Y[1], ln._Y[1])
+
+
+def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: float, tied, a_err: float,
+                      alpha_from: float):
+    """Decide the continuation at the transition point a_star (uncertainty a_err, reached on ln from
+    alpha_from).  Returns (line, d, transition), or a status ("stuck") after recording an event.
+
+    The point itself is taken from the more precise side: a constraint vanishing there whose rate
+    is large locates it better than the one whose root was found on ln (a steep branch entered
+    through a flat constraint), so the entry of the new branch is moved onto that root when it
+    lies within the first estimate's uncertainty."""
+    degenerate = len(tied) > 1
+    vanishing = _vanishing(ctx, ln, tied)
+    e = None
+    try:
+        nxt, d, pivots, e = _resolve(ctx, ln, s, a_star, tied)
+    except _Unresolved as exc:
+        # the lexicographic rule failed (a singular branch, rounding): the enumeration of small points
+        nodes = sorted(set(ln.cnode[tied].tolist()))
+        conts = _enumerated_continuations(ctx, ln, s, a_star, nodes) if len(nodes) <= ENUMERATION_CHECK_NODES else []
+        if not conts:
+            kind = "dead_end" if exc.kind in ("singular", "cycling") else "degenerate"
+            path.events.append(PathEvent(kind, a_star, f"the transition point could not be crossed: {exc}",
+                                         branch.index, jsonable({"vanishing": vanishing, "reason": exc.kind,
+                                                                 **exc.data})))
+            return "stuck"
+        conts.sort(key=lambda cd: 0 if cd[1] == s else 1)
+        nxt, d = conts[0]
+        pivots = []
+    if len(pivots) > 1:
+        degenerate = True
+    if e is not None:
+        de = float(nxt.dc[e])
+        delta = -float(nxt.c[e]) / de
+        if (float(nxt.tol_v[e]) / abs(de) < a_err and abs(delta) <= 2.0 * a_err
+                and s * (a_star + delta - alpha_from) >= 0 and ctx.lo <= a_star + delta <= ctx.hi):
+            ctx._lines.pop((nxt.key, float(a_star)), None)
+            _shift(nxt, delta)
+            a_star = nxt.alpha
+    alternatives = []
+    if degenerate:
+        ctx.stats["degenerate_points"] += 1
+        ctx.stats["max_vanishing"] = max(ctx.stats["max_vanishing"], len(tied))
+        alternatives = _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots)
+    kind = "transversal" if d == s else "fold"
+    changes = _changes(ln, nxt, vanishing)
+    tr = Transition(len(path.transitions), a_star, kind, changes[0]["node"], changes[0]["set"], branch.index,
+                    len(path.branches), bracket=(a_star, a_star), changes=changes,
+                    pivots=[dict(p) for p in pivots] if degenerate else [])
+    if len(alternatives) > 1:
+        ctx.stats["branch_points"] += 1
+        alts = [{"sets": c.sets.to_dict(), "states": c.sets.states(), "orientation": int(dd),
+                 "kind": "transversal" if dd == s else "fold", "alpha": a_star, "chosen": k == 0}
+                for k, (c, dd) in enumerate(alternatives)]
+        path.events.append(PathEvent("branch_point", a_star, f"{len(alternatives)} branches leave the transition "
+                                     f"point; following the one of the lexicographic rule (see "
+                                     f"data['alternatives'], follow_alternative)", branch.index,
+                                     {"alternatives": alts, "transition": tr.index, "vanishing": vanishing}))
+    return nxt, d, tr
+
+
+def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
+    """[(line, d)] of every continuation found at a degenerate point, the rule's own first."""
+    out = [(nxt, d)]
+
+    def add(c, dd):
+        if not any(dd == d2 and _same_line(c, o) for o, d2 in out):
+            out.append((c, dd))
+
+    # the opposite perturbation pairs the rays of the point differently; it applies when no
+    # constraint of ln vanishes identically along it (those are positive only under +eps)
+    vals = ln.values(a_star)
+    zero = np.abs(vals) <= ln.tol_v + abs(a_star - ln.alpha) * ln.tol_s
+    zero[tied] = False
+    if not zero.any():
+        try:
+            c2, d2, _, _ = _resolve(ctx, ln, s, a_star, tied, sign=-1)
+            add(c2, d2)
+        except _Unresolved:
+            pass
+    nodes = sorted(set(ln.cnode[tied].tolist()) | {p["node"] for p in pivots})
+    if len(nodes) <= ENUMERATION_CHECK_NODES:
+        for c, dd in _enumerated_continuations(ctx, ln, s, a_star, nodes):
+            add(c, dd)
+    return out
+
+
+class _Walk:
+    """Following the path from one branch on, one transition per :meth:`step`, appending to a path.
+
+    State (always current, see :meth:`state`): the branch ``ln`` followed in direction ``s`` since
+    ``alpha`` (its entry), its index in the path, the transition count the cap counts from, and the
+    branches entered so far (``ctx.visited``)."""
+
+    def __init__(self, ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, branch,
+                 n_trans0: int, start_key):
+        self.ctx, self.path, self.ln, self.s, self.alpha, self.branch = ctx, path, ln, s, alpha, branch
+        self.n_trans0, self.start_key = n_trans0, start_key
+
+    @classmethod
+    def begin(cls, ctx, path, ln, s, alpha, parent=None, origin=None):
+        """A walk entering (ln, s) at alpha: the branch and its entry point are added to the path."""
         branch = _add_branch(path, ln, s, origin=origin, parent=parent, alpha_enter=alpha)
-    else:
-        branch = resume_branch
-    if n_trans0 is None:
-        n_trans0 = len(path.transitions)
+        path.add_point(branch, alpha)
+        return cls(ctx, path, ln, s, alpha, branch, len(path.transitions), (_digest(ln.codes.tobytes()), s))
 
-    def stopped():
-        branch.alpha_exit = alpha
-        path.resume_state = _resume_state(ctx, branch, ln, s, alpha, n_trans0)
-        return "stopped by callback"
+    def state(self) -> dict:
+        """What continues the walk (JSON): the branch being followed (its index, canonical state
+        codes, orientation, entry alpha -- its entry point is stored in the path), the transition
+        count the max_transitions cap counts from, and the branches entered so far."""
+        ln = self.ln
+        return {"branch": int(self.branch.index), "codes": [int(c) for c in ln.codes], "states": ln.sets.states(),
+                "orientation": int(self.s), "alpha": float(self.alpha), "transitions0": int(self.n_trans0),
+                "visited": [[k.hex(), int(v[0]), float(v[1])] for k, v in self.ctx.visited.items()]}
 
-    def emit(idx):
-        if ctx.callback is None:
-            return False
-        sol = Solution.from_y(system, path._ys[idx], path._alphas[idx], sets=ln.sets)
-        return bool(ctx.callback(PathPoint(idx, path._alphas[idx], branch.index, sol, path)))
-
-    if resume_branch is None:
-        idx = path.add_point(branch, alpha, y_enter)
-        if emit(idx):
-            return stopped()
-    while True:
-        key = (ln.key, s)
-        seen = ctx.visited.setdefault(key, [])
-        if any(abs(alpha - a) <= 1e-12 * (1.0 + abs(alpha)) for a in seen):
-            path.events.append(PathEvent("cycling", alpha, f"branch {ln.sets} with orientation {s} entered again at "
-                                         f"alpha={alpha!r}: the path loops", branch.index,
-                                         {"sets": ln.sets.to_dict(), "orientation": s}))
-            branch.alpha_exit = alpha
-            return "cycling"
-        seen.append(alpha)
-        a_star, vanish = _exit(ctx, ln, alpha, s)
+    def step(self):
+        """("point", index) of the next branch's entry point, ("end", index) of the point where the
+        path leaves the alpha range, or ("status", status) when the walk cannot go on."""
+        ctx, path, ln, s, branch = self.ctx, self.path, self.ln, self.s, self.branch
+        ctx.visited.setdefault(_digest(ln.codes.tobytes()), (s, self.alpha))
+        a_star, tied, a_err = _exit(ctx, ln, self.alpha, s)
         if a_star is None:
             a_end = ctx.hi if s > 0 else ctx.lo
             branch.alpha_exit = a_end
-            idx = path.add_point(branch, a_end)
-            emit(idx)
-            return "completed"
+            return "end", path.add_point(branch, a_end)
+        limit = ctx.opts.max_transitions
+        if len(path.transitions) - self.n_trans0 >= limit:
+            branch.alpha_exit = a_star
+            path.add_point(branch, a_star)
+            path.events.append(PathEvent("max_transitions", a_star, f"transition cap {limit} reached (raise "
+                                         f"max_transitions to trace further)", branch.index))
+            return "status", "max_transitions"
+        res = _transition_point(ctx, path, branch, ln, s, a_star, tied, a_err, self.alpha)
+        if isinstance(res, str):
+            branch.alpha_exit = a_star
+            path.add_point(branch, a_star)
+            return "status", res
+        nxt, d, tr = res
+        a_star = tr.alpha
         branch.alpha_exit = a_star
         path.add_point(branch, a_star)
-        limit = opts.max_transitions if budget is None else budget
-        if len(path.transitions) - n_trans0 >= limit:
-            path.events.append(PathEvent("max_transitions", a_star, f"transition cap {limit} reached",
-                                         branch.index))
-            return "max_transitions"
-        conts, info = _continuations(ctx, ln, a_star, s, vanish)
-        vanishing = [{"node": i, "set": SET_NAMES[c // ctx.m]}
-                     for i, c in zip(ln.cnode[vanish].tolist(), ln.cidx[vanish].tolist())]
-        if conts is None:
-            path.events.append(PathEvent("degenerate", a_star, f"{info['candidates']} candidate set combinations at "
-                                         f"nodes {info['nodes']} (limit {MAX_CANDIDATES}); the transition is "
-                                         f"too degenerate to resolve", branch.index,
-                                         {"vanishing": vanishing, **_jsonable(info)}))
-            return "stuck"
-        if not conts:
-            path.events.append(PathEvent("dead_end", a_star, "no set combination continues the path at this "
-                                         "transition point (one-sided consistency fails in both directions)",
-                                         branch.index, {"vanishing": vanishing, **_jsonable(info)}))
-            return "stuck"
-        # prefer keeping the orientation, then folds; order within: fewest changed nodes
-        conts.sort(key=lambda cd: 0 if cd[1] == s else 1)
-        nxt, d = conts[0]
-        kind = "transversal" if d == s else "fold"
-        changes = []
-        for ch in vanishing:
-            i = ch["node"]
-            changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
-        changed = {c["node"] for c in changes}
-        # state changes at nodes whose own constraint did not vanish
-        for i in (nxt.codes != ln.codes).nonzero()[0].tolist():
-            if i not in changed:
-                changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],
-                                "to": STATE_NAMES[int(nxt.codes[i])]})
-        tr = Transition(len(path.transitions), a_star, kind, changes[0]["node"], changes[0]["set"], branch.index,
-                        len(path.branches), bracket=(a_star, a_star), changes=changes)
-        if len(conts) > 1:
-            alts = [{"sets": c.sets.to_dict(), "states": c.sets.states(), "orientation": int(dd),
-                     "kind": "transversal" if dd == s else "fold", "alpha": a_star, "chosen": k == 0}
-                    for k, (c, dd) in enumerate(conts)]
-            path.events.append(PathEvent("branch_point", a_star, f"{len(conts)} branches leave the transition point; "
-                                         f"following the first (see data['alternatives'], follow_alternative)",
-                                         branch.index, {"alternatives": alts, "transition": tr.index,
-                                                        "vanishing": vanishing}))
+        key = _digest(nxt.codes.tobytes())
+        seen = ctx.visited.get(key)
+        if seen is not None:
+            closed = (key, d) == self.start_key
+            kind = "closed_loop" if closed else "cycling"
+            msg = ("the path returns to its first branch: its solutions form a closed curve" if closed else
+                   f"branch {nxt.sets} is entered a second time (first at alpha={seen[1]!r}): a numerical "
+                   f"inconsistency")
+            path.events.append(PathEvent(kind, a_star, msg, branch.index, jsonable(
+                {"sets": nxt.sets.to_dict(), "orientation": d, "first_orientation": seen[0], "first_alpha": seen[1],
+                 "transition": tr.to_dict()})))
+            return "status", kind
         path.transitions.append(tr)
-        log.info("alpha=%.12g %s transition: %s", a_star, kind, changes)
-        parent_idx, ln, s, alpha = branch.index, nxt, d, a_star
-        branch = _add_branch(path, ln, s, origin=tr.index, parent=parent_idx, alpha_enter=alpha)
-        idx = path.add_point(branch, alpha)
-        if emit(idx):
-            return stopped()
+        log.info("alpha=%.12g %s transition: %s", a_star, tr.kind, tr.changes)
+        self.branch = _add_branch(path, nxt, d, origin=tr.index, parent=branch.index, alpha_enter=a_star)
+        self.ln, self.s, self.alpha = nxt, d, a_star
+        return "point", path.add_point(self.branch, a_star)
+
+    def point(self, index) -> PathPoint:
+        path = self.path
+        sol = Solution.from_y(self.ctx.system, path._ys[index], path._alphas[index], sets=self.ln.sets)
+        return PathPoint(index, path._alphas[index], self.branch.index, sol, path)
+
+    def run(self, callback=None) -> str:
+        """Step to the end (or until ``callback`` stops the walk: "stopped by callback")."""
+        if callback is not None and callback(self.point(len(self.path._alphas) - 1)):
+            return "stopped by callback"
+        while True:
+            what, value = self.step()
+            if what == "status":
+                return value
+            if callback is not None and callback(self.point(value)) and what == "point":
+                return "stopped by callback"
+            if what == "end":
+                return "completed"
 
 
-def _jsonable(info):
-    return {"nodes": list(map(int, info["nodes"])), "candidates": int(info["candidates"]),
-            "admissible": {str(k): v for k, v in info["admissible"].items()}}
+class ExactStepper(Stepper):
+    """One run of the exact method (see :class:`cfcontact.stepper.Stepper`): one transition per
+    accepted point; its resume state is always current, so a checkpoint is a save.
+
+    ``resume``: ``{"path": SolutionPath, "state": resume state}`` of a stopped or checkpointed run
+    (the path possibly saved and loaded); new points are appended to that path."""
+
+    method = "exact"
+
+    def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None,
+                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None):
+        self.system, self.span, self.opts = system, span, options
+        self.solver = solver or get_solver(system)
+        self.finished, self.done = False, False
+        self.start = None
+        if resume is None:
+            self._start_clock()
+            self.ctx = _Context(system, self.solver, options, span.lo, span.hi, float(options.tie_rtol))
+            self.path = SolutionPath.for_system(system, "exact", span.start, span.end, options.to_dict())
+            s = span.direction if orientation is None else int(orientation)
+            if s not in (1, -1):
+                raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
+            ln, s, self.start = _start(self.ctx, self.path, span.start, s, y0, start_sets)
+            self.walk = _Walk.begin(self.ctx, self.path, ln, s, span.start)
+            self._pending = 0  # the start point is the first accepted point
+        else:
+            path, state = resume_parts(system, span.start, span.end, resume, "exact")
+            try:
+                branch = path.branches[int(state["branch"])]
+                codes = np.asarray(state["codes"], dtype=np.int8)
+                s, alpha, n_trans0 = int(state["orientation"]), float(state["alpha"]), int(state["transitions0"])
+                visited = {bytes.fromhex(k): (int(sg), float(a)) for k, sg, a in state["visited"]}
+            except (KeyError, IndexError, TypeError, ValueError) as exc:
+                raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
+            if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
+                    or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
+                raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
+            tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
+            if tie_rtol != options.tie_rtol:
+                self.opts = options = PathOptions.with_overrides(options, tie_rtol=tie_rtol)
+            self._start_clock(path.stats)
+            self.start = path.stats.get("start")
+            self.ctx = _Context(system, self.solver, options, span.lo, span.hi, float(options.tie_rtol))
+            for k in self.ctx.stats:
+                self.ctx.stats[k] = int(path.stats.get(k, 0))
+            self.ctx.visited = visited
+            self.path = path
+            first = path.branches[0]
+            start_key = (_digest(canonical_codes(first.sets, system.friction).tobytes()), first.orientation)
+            self.walk = _Walk(self.ctx, path, self.ctx.line(codes, alpha), s, alpha, branch, n_trans0, start_key)
+            path.status, path.resume_state = "running", None
+            branch.alpha_exit = float("nan")
+            self._pending = None
+
+    # ------------------------------------------------------------- stepper interface
+    @property
+    def resume_state(self) -> dict:
+        return self.walk.state()
+
+    def point(self, index: int) -> PathPoint:
+        return self.walk.point(index)
+
+    def stop(self) -> SolutionPath:
+        if self.done:  # the point was the end of the path
+            return self._finish("completed")
+        self.walk.branch.alpha_exit = self.walk.alpha
+        return self._finish("stopped by callback")
+
+    def _update_stats(self):
+        super()._update_stats()
+        for k, v in self.ctx.stats.items():
+            self.path.stats[k] = v
+        if self.start is not None:
+            self.path.stats["start"] = self.start
+
+    def _finish(self, status) -> SolutionPath:
+        self.finished = True
+        path = self.path
+        if path.lazy and getattr(self.solver, "size", 1) > 1:
+            path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
+        path.status = status
+        self._update_stats()
+        path.resume_state = self.walk.state() if status == "stopped by callback" else None
+        log.info("exact path: %s", path)
+        return path
+
+    def advance(self) -> Optional[int]:
+        if self.finished:
+            return None
+        if self._pending is not None:
+            index, self._pending = self._pending, None
+            return index
+        if self.done:
+            self._finish("completed")
+            return None
+        what, value = self.walk.step()
+        if what == "status":
+            self._finish(value)
+            return None
+        if what == "end":
+            self.done = True
+        return value
 
 
-# ---------------------------------------------------------------------- resume
-def _resume_state(ctx: _Context, branch, ln: _Line, s: int, alpha: float, n_trans0: int) -> dict:
-    """What a stopped run needs to continue (JSON): the branch being followed (its index, canonical
-    state codes, orientation, entry alpha -- its entry point is stored in the path), the transition
-    count the max_transitions budget counts from, and the cycle detector.  Nothing else is pending:
-    the alternatives of branch points are events of the path (follow_alternative)."""
-    return {"branch": int(branch.index), "codes": [int(c) for c in ln.codes], "states": ln.sets.states(),
-            "orientation": int(s), "alpha": float(alpha), "transitions0": int(n_trans0),
-            "visited": [[k.hex(), int(sg), [float(a) for a in al]] for (k, sg), al in ctx.visited.items()]}
-
-
-def _resume(system, span: AlphaSpan, options: PathOptions, solver, resume, callback=None) -> SolutionPath:
-    """Continue an exact run stopped by its callback (see :func:`trace_exact`)."""
-    t0 = time.perf_counter()
-    path, state = resume_parts(system, span.start, span.end, resume, "exact")
+# ---------------------------------------------------------------------- start
+def _ssnm_start(ctx: _Context, alpha, y0):
+    """Sets of SSNM's solution at alpha, or None when SSNM does not converge."""
+    system, solver, opts = ctx.system, ctx.solver, ctx.opts
+    if y0 is None and hasattr(solver, "ssnm_sets"):
+        return solver.ssnm_sets(system.load(alpha), opts.tol, opts.max_iter)
     try:
-        branch = path.branches[int(state["branch"])]
-        codes = np.asarray(state["codes"], dtype=np.int8)
-        s, alpha, n_trans0 = int(state["orientation"]), float(state["alpha"]), int(state["transitions0"])
-        visited = {(bytes.fromhex(k), int(sg)): [float(a) for a in al] for k, sg, al in state["visited"]}
-    except (KeyError, IndexError, TypeError, ValueError) as exc:
-        raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
-    if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
-            or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
-        raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
-    tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
-    if tie_rtol != options.tie_rtol:
-        options = PathOptions.with_overrides(options, tie_rtol=tie_rtol)
-    ctx = _prepare(system, span, options, solver, callback)
-    ctx.visited = visited
-    stats0 = ctx.solver.stats.as_dict()
-    before = {k: v for k, v in path.stats.items() if isinstance(v, (int, float))}
-    ln = ctx.line(codes)
-    path.status, path.resume_state = "running", None
-    branch.alpha_exit = float("nan")
-    status = _run(ctx, path, ln, s, alpha, None, resume_branch=branch, n_trans0=n_trans0)
-    return _finish(path, ctx.solver, stats0, t0, status, before)
+        return start_point(system, alpha, y0, opts, solver).sets
+    except ConvergenceError:
+        if y0 is not None:
+            raise
+        return None
 
 
-def _prepare(system, span: AlphaSpan, opts: PathOptions, solver, callback=None) -> _Context:
-    """The run's context (span and options validated by the caller, once)."""
-    solver = solver or get_solver(system)
-    ctx = _Context(system, solver, opts, span.lo, span.hi, float(opts.tie_rtol), callback)
-    ctx.prepare_loads()
-    return ctx
+def _homotopy_start(ctx: _Context, alpha) -> tuple:
+    """Sets of a solution at alpha reached by the exact method from data whose only solution is
+    every node open (condensed backend only), and the number of transitions it took.
+
+    In the condensed data w (B u = w - S lam), take w_open = (-c, w_t(alpha)): a separating normal
+    gap c > max(0, -min w_n, F max|w_t|) with the tangential data held.  For every t <= 0 the data
+    (1 - t) w_open + t w(alpha) has the single solution "all open" (an energy argument: lam^T S lam
+    <= sum lam_n (w_n + F |w_t|) < 0 unless lam = 0), so the path from t = 0 cannot come back to
+    t <= 0 and, its branches being bounded and entered once each, it reaches t = 1."""
+    data, m = ctx.data, ctx.m
+    w = (1.0 - alpha) * data.w1 + alpha * data.w2
+    Fmax = float(ctx.Fv.max(initial=0.0))
+    scale = max(np.abs(w).max(initial=0.0), 1e-300)
+    c = 1.1 * max(0.0, -float(w[:m].min(initial=0.0)), Fmax * float(np.abs(w[m:]).max(initial=0.0))) + scale
+    w_open = np.concatenate([np.full(m, -c), w[m:]])
+    hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None)
+    hctx = _Context(ctx.system, ctx.solver, hopts, 0.0, 1.0, ctx.rtol, W=np.column_stack([w_open, w]))
+    hctx.E, hctx.data.WE = ctx.E, data.WE
+    path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
+    walk = _Walk.begin(hctx, path, hctx.line(np.zeros(m, dtype=np.int8), 0.0), 1, 0.0)
+    status = walk.run()
+    for k in ("degenerate_points", "pivots", "perturbation_solves"):
+        ctx.stats[k] += hctx.stats[k]
+    ctx.E, data.WE = hctx.E, hctx.data.WE
+    if status != "completed" or walk.s != 1:
+        return None, len(path.transitions)
+    return walk.ln.sets, len(path.transitions)
 
 
+def _start(ctx: _Context, path, alpha, s, y0, start_sets):
+    """(line, orientation, how) of the start: the branch of the start solution's sets leaving alpha
+    in direction s (see :func:`_leave_start`); how = "start_sets", "ssnm", "homotopy" or
+    "enumeration"."""
+    system = ctx.system
+    if start_sets is not None:
+        if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
+            raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
+        codes = canonical_codes(start_sets, system.friction)
+        ln = ctx.line(codes, alpha)
+        if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+            raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha}: "
+                             f"DirNeu(start_sets, f(alpha_start)) is not a solution")
+        how = "start_sets"
+    else:
+        start_sets, how = _ssnm_start(ctx, alpha, y0), "ssnm"
+        if start_sets is None and ctx.condensed:
+            start_sets, transitions = _homotopy_start(ctx, alpha)
+            how = "homotopy"
+            ctx.stats["homotopy_transitions"] = transitions
+            log.info("SSNM did not converge at alpha_start=%g; the start was reached by the exact method from "
+                     "the all-open state (%d transitions)", alpha, transitions)
+        if start_sets is None:
+            start_sets, how = _enumeration_start(system, alpha, path), "enumeration"
+        codes = canonical_codes(start_sets, system.friction)
+    ln, s = _leave_start(ctx, path, codes, alpha, s)
+    return ln, s, how
+
+
+def _leave_start(ctx: _Context, path, codes, alpha, s):
+    """The branch leaving the start point in direction s: the start sets' branch, or -- when
+    constraints of it vanish at alpha_start and decrease -- the branch the lexicographic rule
+    reaches from it at alpha_start."""
+    ln = ctx.line(codes, alpha)
+    zero = np.abs(ln.c) <= ln.tol_v
+    dec = (zero & (s * ln.dc < -ln.tol_s)).nonzero()[0]
+    if not dec.size:
+        return ln, s
+    try:
+        nxt, d, pivots, _ = _resolve(ctx, ln, s, alpha, dec, start=True)
+    except _Unresolved as exc:
+        path.events.append(PathEvent("start_degenerate", alpha, f"the start point is a degenerate point the "
+                                     f"lexicographic rule could not leave ({exc}); starting on the start "
+                                     f"solution's own branch", None, jsonable(exc.data)))
+        return ln, s
+    ctx.stats["start_pivots"] = len(pivots)
+    log.info("constraints of the start branch vanish at alpha_start=%g; %d pivot(s) lead to the branch "
+             "leaving it: %s", alpha, len(pivots), pivots)
+    return nxt, d
+
+
+def _enumeration_start(system, alpha, path):
+    """Start sets from enumeration (small problems), else the ConvergenceError of SSNM."""
+    if system.m > START_ENUMERATION_MAX_NODES:
+        raise ConvergenceError(f"SSNM did not converge at alpha={alpha} and the start could not be reached "
+                               f"otherwise (m = {system.m})")
+    from cfcontact.enumerate import enumerate_solutions
+
+    sols = enumerate_solutions(system, alpha, max_nodes=START_ENUMERATION_MAX_NODES)
+    if not sols:
+        raise ConvergenceError(f"no solution found at alpha={alpha} (SSNM and enumeration)")
+    path.events.append(PathEvent(
+        "start_by_enumeration", alpha, f"SSNM did not converge at alpha_start; started from the first of "
+        f"{len(sols)} solutions found by enumeration (follow the others with start_sets=...)",
+        None, {"solutions": [{"sets": x.sets.to_dict(), "states": x.states()} for x in sols]}))
+    return sols[0].sets
+
+
+# ---------------------------------------------------------------------- entry points
 def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, y0=None,
                 options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None,
                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
-                resume=None, callback=None) -> SolutionPath:
+                resume=None, callback=None, tree: bool = False) -> SolutionPath:
     """Exact piecewise-affine continuation of the solution path from alpha_start towards alpha_end.
 
     Parameters
@@ -571,98 +1045,60 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         start SSNM are used; the step-size options are not)
     solver : DirNeu backend (default: the system's PETSc :class:`~cfcontact.ssnm.DirNeuSolver`;
         :class:`~cfcontact.condensed.CondensedSolver` for one factorization of K in total)
-    tie_rtol : relative tolerance (on the largest indicator magnitude) under which an indicator
-        value counts as zero at a transition point (ties) or a slope as zero (overrides
-        ``options.tie_rtol``)
+    tie_rtol : relative tolerance (on the local size of the indicators, beyond their measured
+        rounding error) under which an indicator value or rate counts as zero (overrides
+        ``options.tie_rtol``); ties are settled by the lexicographic rule
     start_sets, orientation : start on the branch of these sets (y = DirNeu(start_sets, f(alpha_start)),
         which must be consistent there) with this orientation (default: towards alpha_end)
     resume : continue a run stopped by its callback instead of starting anew: a dict
-        ``{"path": SolutionPath, "state": path.resume_state}`` (the stopped run's path, possibly
-        saved and loaded, and the state it left in ``path.resume_state``: the branch being
-        followed -- sets, orientation, entry alpha -- the transition budget's start and the
-        cycle detector).  The branch is rebuilt from its sets, new points are appended to that
-        path, and the result equals an uninterrupted run.  The path's ``tie_rtol`` is used;
-        y0, start_sets and orientation are ignored.
-
+        ``{"path": SolutionPath, "state": path.resume_state}``.  The result equals an
+        uninterrupted run.  The path's ``tie_rtol`` is used; y0, start_sets and orientation are
+        ignored.
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint` (the start,
         the entry of every branch, the end); a truthy return stops the run
+    tree : also follow every alternative of every branch point (see :func:`trace_tree`)
 
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
-    (bracket (alpha, alpha)) and every change (``Transition.changes``).  Status "completed"
-    (alpha range left), "stuck" (dead end / too degenerate, see events), "cycling",
-    "max_transitions" or "stopped by callback".
+    (bracket (alpha, alpha)), every change (``Transition.changes``) and, at degenerate points,
+    the single pivots of the rule (``Transition.pivots``).  Status "completed" (alpha range left),
+    "stuck" (a point that could not be crossed, see events), "closed_loop" (the path came back to
+    its first branch: a closed curve of solutions), "cycling" (a branch entered twice: a numerical
+    inconsistency, see events), "max_transitions" or "stopped by callback".  ``path.stats`` adds
+    ``start`` (how the start was found: "ssnm", "homotopy", "enumeration", "start_sets"),
+    ``degenerate_points``, ``pivots``, ``max_vanishing``, ``branch_points`` and
+    ``homotopy_transitions``.
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
-    return run_exact(system, span, opts, solver, y0=y0, start_sets=start_sets, orientation=orientation,
-                     resume=resume, callback=callback)
+    path = ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
+                        orientation=orientation).run(callback)
+    if tree and path.status in ("completed", "closed_loop", "stuck", "cycling"):
+        _follow_all(system, path, opts, solver)
+    return path
 
 
-def run_exact(system: ContactSystem, span: AlphaSpan, opts: PathOptions, solver=None, y0=None,
-              start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
-              resume=None, callback=None) -> SolutionPath:
-    """:func:`trace_exact` with its arguments validated (by :func:`cfcontact.start.check_request`)."""
-    if resume is not None:
-        return _resume(system, span, opts, solver, resume, callback)
-    alpha_start, alpha_end = span.start, span.end
-    t0 = time.perf_counter()
-    ctx = _prepare(system, span, opts, solver, callback)
-    solver = ctx.solver
-    stats0 = solver.stats.as_dict()
-    s = (1 if alpha_end > alpha_start else -1) if orientation is None else int(orientation)
-    if s not in (1, -1):
-        raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
-    path = SolutionPath.for_system(system, "exact", alpha_start, alpha_end, opts.to_dict())
-    alpha = float(alpha_start)
-    if start_sets is not None:
-        if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
-            raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
-        codes = canonical_codes(start_sets, system.friction)
-        ln = ctx.line(codes)
-        y = None  # the branch's point at alpha (formed lazily with the condensed backend)
-        if np.any(ln.values(alpha) < -ln.tol_v(alpha, 1e-8)):
-            raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha_start}: "
-                             f"DirNeu(start_sets, f(alpha_start)) is not a solution")
-    else:
-        # condensed backend from 0: only the start's sets are needed (its u is formed on demand)
-        start_sets = (solver.ssnm_sets(system.load(alpha), opts.tol, opts.max_iter)
-                      if y0 is None and hasattr(solver, "ssnm_sets") else None)
-        try:
-            if start_sets is None:  # SSNM from y0 (or a failed fast start: start_point's restarts)
-                start_sets = start_point(system, alpha, y0, opts, solver).sets
-        except ConvergenceError as exc:
-            # SSNM is only locally convergent; small problems can be started by enumeration
-            if y0 is not None or system.m > START_ENUMERATION_MAX_NODES:
-                raise
-            from cfcontact.enumerate import enumerate_solutions
-
-            sols = enumerate_solutions(system, alpha, max_nodes=START_ENUMERATION_MAX_NODES)
-            if not sols:
-                raise
-            start_sets = sols[0].sets
-            path.events.append(PathEvent(
-                "start_by_enumeration", alpha, f"SSNM did not converge at alpha_start ({exc}); started from the "
-                f"first of {len(sols)} solutions found by enumeration (follow the others with start_sets=...)",
-                None, {"solutions": [{"sets": x.sets.to_dict(), "states": x.states()} for x in sols]}))
-        ln = ctx.line(canonical_codes(start_sets, system.friction))
-        y = None  # the branch's point at alpha (formed lazily with the condensed backend)
-    status = _run(ctx, path, ln, s, alpha, y)
-    return _finish(path, solver, stats0, t0, status)
+def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, **kwargs) -> SolutionPath:
+    """The whole connected tree of branches reachable from the start: :func:`trace_exact` and then
+    every alternative of every branch point (:func:`follow_alternative`), those met on the way
+    included.  Sub-runs end where they reach a branch already traced ("joined") or come back to
+    their own first branch ("closed_loop").  Multiplicity counts (``solutions_at``,
+    ``max_multiplicity``) then include every branch of the tree."""
+    return trace_exact(system, alpha_start, alpha_end, tree=True, **kwargs)
 
 
 def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: int, alternative: int,
                        options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None,
-                       callback=None) -> dict:
+                       callback=None, _ctx=None) -> dict:
     """Follow another branch leaving a branch point of an exact path.
 
     ``path.events[event_index]`` must be a "branch_point" event; ``alternative`` indexes its
     ``data["alternatives"]``.  The new branches are appended to ``path`` (a tree: the first new
     branch has ``parent`` = the branch that reached the branch point and ``origin`` = a new
-    Transition).  ``path.status`` (the main run's) is unchanged; the sub-run's status and its
-    branch indices are returned and stored in ``event.data["followed"][str(alternative)]``.
-    A sub-run stopped by ``callback`` ends there (status "stopped by callback"):
-    ``path.resume_state`` keeps the main run's state, so that resuming the path continues the
-    main run, not the alternative.
+    Transition).  ``path.status`` (the main run's) is unchanged; the sub-run's status ("completed",
+    "closed_loop", ...) and its branch indices are returned and stored in
+    ``event.data["followed"][str(alternative)]``.  A sub-run stopped by ``callback`` ends there
+    (status "stopped by callback"): ``path.resume_state`` keeps the main run's state, so that
+    resuming the path continues the main run, not the alternative.
     """
     if not (0 <= event_index < len(path.events)) or path.events[event_index].kind != "branch_point":
         raise InputError(f"event {event_index} is not a branch_point event of this path")
@@ -671,34 +1107,61 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     if not (0 <= alternative < len(alts)):
         raise InputError(f"alternative {alternative} out of range (0..{len(alts) - 1})")
     alt = alts[alternative]
-    if tie_rtol is None:
-        tie_rtol = path.options.get("tie_rtol", TIE_RTOL)
-    opts, span = check_request(system, path.alpha_start, path.alpha_end,
-                               options or PathOptions.from_dict(path.options), tie_rtol=tie_rtol)
     t0 = time.perf_counter()
-    ctx = _prepare(system, span, opts, solver, callback)
+    if _ctx is None:  # a sub-run of its own: it ends when it leaves the alpha range (or loops itself)
+        if tie_rtol is None:
+            tie_rtol = path.options.get("tie_rtol", TIE_RTOL)
+        opts, span = check_request(system, path.alpha_start, path.alpha_end,
+                                   options or PathOptions.from_dict(path.options), tie_rtol=tie_rtol)
+        ctx = _Context(system, solver or get_solver(system), opts, span.lo, span.hi, float(opts.tie_rtol))
+    else:  # part of a tree (_follow_all): it ends where it joins a branch of the tree
+        ctx = _ctx
     stats0 = ctx.solver.stats.as_dict()
     a = float(alt["alpha"])
-    sets = InactiveSets.from_dict(alt["sets"])
-    ln = ctx.line(canonical_codes(sets, system.friction))
+    codes = canonical_codes(InactiveSets.from_dict(alt["sets"]), system.friction)
     from_b = path.branches[ev.branch]
-    old = InactiveSets.from_dict(path.branches[ev.branch].sets.to_dict())
-    oc, nc = canonical_codes(old, system.friction), ln.codes
-    changes = [{"node": int(i), "set": None, "from": STATE_NAMES[int(oc[i])], "to": STATE_NAMES[int(nc[i])]}
-               for i in np.flatnonzero(oc != nc)] or [{"node": -1, "set": None}]
+    oc = canonical_codes(from_b.sets, system.friction)
+    changes = [{"node": int(i), "set": None, "from": STATE_NAMES[int(oc[i])], "to": STATE_NAMES[int(codes[i])]}
+               for i in np.flatnonzero(oc != codes)] or [{"node": -1, "set": None}]
     d = int(alt["orientation"])
-    tr = Transition(len(path.transitions), a, "transversal" if d == from_b.orientation else "fold",
-                    changes[0]["node"], changes[0]["set"], from_b.index, len(path.branches), bracket=(a, a),
-                    changes=changes)
-    path.transitions.append(tr)
     first = len(path.branches)
-    main_resume_state = path.resume_state
-    status = _run(ctx, path, ln, d, a, None, parent=from_b.index, origin=tr.index)
-    path.resume_state = main_resume_state  # (_run sets it when the callback stops the sub-run)
+    key = _digest(codes.tobytes())
+    if _ctx is not None and key in ctx.visited:
+        status = "joined"
+    else:
+        tr = Transition(len(path.transitions), a, "transversal" if d == from_b.orientation else "fold",
+                        changes[0]["node"], changes[0]["set"], from_b.index, len(path.branches), bracket=(a, a),
+                        changes=changes)
+        path.transitions.append(tr)
+        walk = _Walk.begin(ctx, path, ctx.line(codes, a), d, a, parent=from_b.index, origin=tr.index)
+        status = walk.run(callback)
+        if status == "cycling" and _ctx is not None:
+            status = "joined"  # the alternative runs into a branch of the tree
+        if status == "stopped by callback":
+            walk.branch.alpha_exit = walk.alpha
     if path.lazy and getattr(ctx.solver, "size", 1) > 1:
-        path.form()  # collective (see _finish)
+        path.form()  # collective (see ExactStepper._finish)
     st = ctx.solver.stats.as_dict()
     result = {"status": status, "branches": list(range(first, len(path.branches))),
               "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}
     ev.data.setdefault("followed", {})[str(alternative)] = result
     return result
+
+
+def _follow_all(system, path, options, solver):
+    """Follow every alternative of every branch point of ``path`` (also those found on the way)."""
+    span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
+    ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
+    for b in path.branches:
+        ctx.visited.setdefault(_digest(canonical_codes(b.sets, system.friction).tobytes()),
+                               (b.orientation, b.alpha_enter))
+    i = 0
+    while i < len(path.events):
+        ev = path.events[i]
+        if ev.kind == "branch_point":
+            for k, alt in enumerate(ev.data["alternatives"]):
+                if not alt["chosen"] and str(k) not in ev.data.get("followed", {}):
+                    follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
+        i += 1
+    path.stats["tree"] = True
+    return path

@@ -22,9 +22,10 @@ from cfcontact.errors import InputError
 METHODS = ("seed", "exact")
 #: DirNeu backends (:func:`cfcontact.path.select_solver`).
 BACKENDS = ("auto", "full", "condensed")
-#: Default relative tolerance deciding that an indicator "vanishes" (relative to the largest
-#: indicator magnitude of the branch) or that a slope is zero (the exact method).
-TIE_RTOL = 1e-10
+#: Default relative tolerance of the exact method deciding that an indicator value or rate
+#: "vanishes": relative to the local size of the indicators, on top of their rounding error measured
+#: by iterative refinement (see :mod:`cfcontact.exact`).
+TIE_RTOL = 1e-13
 
 
 def _option(default, kind, doc, methods=METHODS):
@@ -41,7 +42,8 @@ class PathOptions:
     alpha_min, alpha_max: the path stops when alpha leaves [alpha_min, alpha_max]
         (default: the interval between alpha_start and alpha_end).
     tol, max_iter: SSNM options for the start point.
-    tie_rtol: relative tolerance under which an indicator counts as zero (exact).
+    tie_rtol: relative tolerance under which an indicator counts as zero, beyond its measured
+        rounding error (exact).
     """
 
     h_min: float = _option(1e-5, "float", "smallest step; a failure at h_min is a transition", ("seed",))
@@ -50,13 +52,13 @@ class PathOptions:
     c_s: float = _option(0.5, "float", "step shortening factor after a rejected step (in (0, 1))", ("seed",))
     h0: float = _option(1e-2, "float", "initial step", ("seed",))
     max_steps: int = _option(200000, "int", "step cap (status max_steps)", ("seed",))
-    max_transitions: int = _option(10000, "int", "transition cap (status max_transitions)")
+    max_transitions: int = _option(1000000, "int", "transition cap (status max_transitions)")
     alpha_min: Optional[float] = _option(None, "float", "stop when alpha < alpha_min (default: min(start, end))")
     alpha_max: Optional[float] = _option(None, "float", "stop when alpha > alpha_max (default: max(start, end))")
     tol: float = _option(1e-9, "float", "SSNM tolerance of the start point")
     max_iter: int = _option(100, "int", "SSNM iterations of the start point")
-    tie_rtol: float = _option(TIE_RTOL, "float", "indicator values below tie_rtol x their scale vanish, in "
-                                                 "(0, 1e-2)", ("exact",))
+    tie_rtol: float = _option(TIE_RTOL, "float", "indicator values within their rounding error plus tie_rtol x "
+                                                 "their local scale vanish, in (0, 1e-2)", ("exact",))
 
     def __post_init__(self):
         bad = []

@@ -6,7 +6,7 @@ it:
 
 * ``method="seed"``: the seed's predictor-corrector (:class:`cfcontact.seed.SeedStepper`);
 * ``method="exact"``: the exact piecewise-affine continuation of :mod:`cfcontact.exact`
-  (:class:`cfcontact.exact_stepper.ExactStepper`).
+  (:class:`cfcontact.exact.ExactStepper`).
 
 Both return a :class:`~cfcontact.solution_path.SolutionPath` (the result model, in
 :mod:`cfcontact.solution_path`).  The names of the result model, the options and the start
@@ -59,7 +59,7 @@ def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, m
                  solver=None, resume=None):
     """The stepper of ``method`` for a validated request (see :func:`trace_path`)."""
     if method == "exact":
-        from cfcontact.exact_stepper import ExactStepper
+        from cfcontact.exact import ExactStepper
 
         return ExactStepper(system, span, options, solver, y0=y0, resume=resume)
     from cfcontact.seed import SeedStepper

@@ -2,14 +2,17 @@
 
 The solution path is a chain (a tree, with :func:`cfcontact.exact.follow_alternative`) of
 oriented linear branches (inactive sets Z fixed, orientation s = +-1) joined at transition
-points.  Along a branch y(alpha) = (1 - alpha) Y1 + alpha Y2 with Y1 = DirNeu(Z, f1),
-Y2 = DirNeu(Z, f2) exactly, so every branch stores (Y1, Y2) and
-:meth:`SolutionPath.solutions_at` evaluates branches exactly (no interpolation between
-stored points), also after :meth:`SolutionPath.load`.
+points.  Along a branch y is affine in alpha, exactly; every branch stores it in *reference
+form*: a reference alpha_r, the point there and the rate, y(alpha) = Y_r + (alpha - alpha_r) Y'
+(the exact method takes the branch's entry as reference, so a branch keeps full accuracy near
+its own alpha range however large its values at alpha = 0 and 1 would be; the seed method gives
+Y1 = DirNeu(Z, f1) and Y2 = DirNeu(Z, f2), i.e. alpha_r = 0).
+:meth:`SolutionPath.solutions_at` evaluates branches exactly (no interpolation between stored
+points), also after :meth:`SolutionPath.load`.
 
 Lazy branches: with the condensed backend (:class:`cfcontact.condensed.CondensedSolver`) a
-branch is determined by its multipliers, lam(alpha) = (1 - alpha) lam1 + alpha lam2, and the
-exact method stores only (lam1, lam2), the indicator values at alpha = 0 and 1 and the backend.
+branch is determined by its multipliers, lam(alpha) = lam_r + (alpha - alpha_r) lam', and the
+exact method stores only those, the indicators in the same form and the backend.
 The displacements u = K^-1 (f - B^T lam) of such branches (and of their stored points) are
 formed when first needed (``ys``, ``points``, ``branch_y``, ``solutions_at``, ``save``), for
 many branches at once in one multi-right-hand-side solve.  ``multiplicity``,
@@ -41,7 +44,9 @@ from cfcontact.jsonio import jsonable
 from cfcontact.ssnm import InactiveSets, Solution
 from cfcontact.system import ContactGeometry, ContactSystem
 
-FORMAT_VERSION = 1
+#: Version 2 stores the branches in reference form (alpha_ref, Y_ref, dY) and the gap; version 1
+#: (Y1, Y2 at alpha = 0 and 1, no gap) still loads.
+FORMAT_VERSION = 2
 SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
 
 
@@ -96,6 +101,8 @@ class Transition:
         "tm": A_t <-> I_t^-) that changed; ``changes`` lists all of them when several did.
     alpha: the transition parameter (seed: last point before it, within the bracket;
         exact: the root of the indicator).  bracket: (lo, hi) known to contain it.
+    pivots: at a degenerate point of the exact method, the single facet crossings (node, set,
+        from, to, orientation) by which its lexicographic rule went from branch to branch.
     """
 
     index: int
@@ -107,10 +114,13 @@ class Transition:
     to_branch: int
     bracket: tuple = (float("nan"), float("nan"))
     changes: list = field(default_factory=list)
+    pivots: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["bracket"] = list(self.bracket)
+        if not d["pivots"]:
+            del d["pivots"]  # (the form of paths saved before pivots existed)
         return d
 
     @classmethod
@@ -171,9 +181,10 @@ class SolutionPath:
     """The traced solution path: points, branches, transitions, and exact branch evaluation."""
 
     def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
-                 geometry: Optional[ContactGeometry] = None):
+                 geometry: Optional[ContactGeometry] = None, gap=None):
         self.n, self.m = int(n), int(m)
         self.N, self.T = sp.csr_matrix(N), sp.csr_matrix(T)
+        self.gap = np.zeros(self.m) if gap is None else np.asarray(gap, dtype=float).reshape(self.m)
         self.friction = friction
         self.rho = float(rho)
         self.method = method
@@ -189,8 +200,9 @@ class SolutionPath:
         self.status = "running"
         self.stats: dict = {}
         self.resume_state: Optional[dict] = None  # state to continue a stopped run (trace_path(resume=...))
-        self._Y: dict = {}  # branch index -> (Y1, Y2)
-        # lazy branches: index -> (lam1, lam2); indicators (3m at alpha = 0 and 1); unformed -> backend
+        self._Y: dict = {}  # branch index -> (alpha_ref, Y_ref, dY)
+        # lazy branches: index -> (alpha_ref, lam_ref, dlam); indicators (alpha_ref, g_ref, dg: 3m);
+        # unformed -> backend
         self._lam: dict = {}
         self._ind: dict = {}
         self._pending: dict = {}
@@ -201,27 +213,35 @@ class SolutionPath:
     def for_system(cls, system: ContactSystem, method, alpha_start, alpha_end, options=None):
         N, T = system.contact_maps()
         return cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
-                   options, system.geometry)
+                   options, system.geometry, getattr(system, "gap", None))
 
     def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan"),
-                   multipliers=None, indicators=None, source=None):
-        """Append a branch with y(alpha) = (1 - alpha) Y1 + alpha Y2.
+                   multipliers=None, indicators=None, source=None, reference=None):
+        """Append a branch.
 
-        Lazy form: Y1 = Y2 = None, ``multipliers`` = (lam1, lam2) (2m each), ``source`` = a
-        backend with ``displacements(lams, alphas)`` (:class:`~cfcontact.condensed.CondensedSolver`)
-        that forms u when needed, optionally ``indicators`` = (g1, g2), the three indicator
-        vectors of (17) stacked (3m) at alpha = 0 and 1."""
+        ``reference=None``: Y1, Y2 are its points at alpha = 0 and 1, y(alpha) = (1 - alpha) Y1 +
+        alpha Y2.  ``reference=alpha_r``: Y1 is its point at alpha_r and Y2 its rate, y(alpha) =
+        Y1 + (alpha - alpha_r) Y2 (likewise for ``multipliers`` and ``indicators``).
+
+        Lazy form: Y1 = Y2 = None, ``multipliers`` (2m each), ``source`` = a backend with
+        ``displacements(lams, alphas)`` (:class:`~cfcontact.condensed.CondensedSolver`) that forms
+        u when needed, optionally ``indicators``: the three indicator vectors of (17) stacked (3m)."""
         b = Branch(len(self.branches), sets, int(orientation), origin=origin, parent=parent, alpha_enter=alpha_enter)
         self.branches.append(b)
+
+        def ref_form(pair):
+            x, z = np.asarray(pair[0], dtype=float), np.asarray(pair[1], dtype=float)
+            return (0.0, x, z - x) if reference is None else (float(reference), x, z)
+
         if Y1 is None:
             if multipliers is None or source is None:
-                raise InputError("a lazy branch needs multipliers=(lam1, lam2) and a source backend")
-            self._lam[b.index] = (np.asarray(multipliers[0], dtype=float), np.asarray(multipliers[1], dtype=float))
+                raise InputError("a lazy branch needs multipliers and a source backend")
+            self._lam[b.index] = ref_form(multipliers)
             if indicators is not None:
-                self._ind[b.index] = (np.asarray(indicators[0], dtype=float), np.asarray(indicators[1], dtype=float))
+                self._ind[b.index] = ref_form(indicators)
             self._pending[b.index] = source
         else:
-            self._Y[b.index] = (np.asarray(Y1, dtype=float), np.asarray(Y2, dtype=float))
+            self._Y[b.index] = ref_form((Y1, Y2))
         return b
 
     def add_point(self, branch: Branch, alpha, y=None) -> int:
@@ -276,12 +296,12 @@ class SolutionPath:
         return [t for t in self.transitions if t.kind == "fold"]
 
     def branch_y(self, branch, alpha) -> np.ndarray:
-        """y on a branch at alpha, exactly: (1 - alpha) Y1 + alpha Y2."""
+        """y on a branch at alpha, exactly: Y_ref + (alpha - alpha_ref) dY."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
         if b not in self._Y:
             self.form([b])
-        Y1, Y2 = self._Y[b]
-        return (1.0 - alpha) * Y1 + alpha * Y2
+        a_r, Yr, dY = self._Y[b]
+        return Yr + (alpha - a_r) * dY
 
     # ------------------------------------------------------- lazy branches
     @property
@@ -290,7 +310,9 @@ class SolutionPath:
         return bool(self._pending)
 
     def form(self, branches=None):
-        """Form (Y1, Y2) of lazy branches (default: all), in one multi-RHS solve per backend.
+        """Form the displacements of lazy branches (default: all): u at the reference alpha and at
+        one more (the rate is their difference; f is affine in alpha), in one multi-RHS solve
+        per backend.
 
         Collective under MPI (every rank must call it for the same branches).  When the
         requested branches are few, every pending branch is formed along with them as long as
@@ -305,12 +327,16 @@ class SolutionPath:
             by_source.setdefault(id(self._pending[b]), (self._pending[b], []))[1].append(b)
         for source, bs in by_source.values():
             lams = np.empty((2 * self.m, 2 * len(bs)))
+            alphas = np.empty(2 * len(bs))
             for k, b in enumerate(bs):
-                lams[:, 2 * k], lams[:, 2 * k + 1] = self._lam[b]
-            U = source.displacements(lams, np.tile([0.0, 1.0], len(bs)))
+                a_r, lr, dl = self._lam[b]
+                lams[:, 2 * k], lams[:, 2 * k + 1] = lr, lr + dl
+                alphas[2 * k], alphas[2 * k + 1] = a_r, a_r + 1.0
+            U = source.displacements(lams, alphas)
             for k, b in enumerate(bs):
-                lam1, lam2 = self._lam[b]
-                self._Y[b] = (np.concatenate([U[:, 2 * k], lam1]), np.concatenate([U[:, 2 * k + 1], lam2]))
+                a_r, lr, dl = self._lam[b]
+                self._Y[b] = (a_r, np.concatenate([U[:, 2 * k], lr]),
+                              np.concatenate([U[:, 2 * k + 1] - U[:, 2 * k], dl]))
                 del self._pending[b]
 
     def _form_points(self, indices):
@@ -350,8 +376,8 @@ class SolutionPath:
         """(lam_n, lam_t) on a branch (or its index) at alpha; a lazy branch forms no displacement."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
         if b in self._lam:
-            lam1, lam2 = self._lam[b]
-            return (1.0 - alpha) * lam1 + alpha * lam2
+            a_r, lr, dl = self._lam[b]
+            return lr + (alpha - a_r) * dl
         return self.branch_y(b, alpha)[self.n:]
 
     def _point_lam(self, i):
@@ -363,8 +389,8 @@ class SolutionPath:
     def _branch_indicators(self, b, alpha):
         """(a, bp, bm) of (17) on branch b at alpha (from the stored indicators of a lazy branch)."""
         if b in self._ind:
-            g1, g2 = self._ind[b]
-            g = (1.0 - alpha) * g1 + alpha * g2
+            a_r, gr, dg = self._ind[b]
+            g = gr + (alpha - a_r) * dg
             m = self.m
             return g[:m], g[m:2 * m], g[2 * m:]
         return self._indicators(self.branch_y(b, alpha))
@@ -373,7 +399,7 @@ class SolutionPath:
         n, m = self.n, self.m
         u, ln, lt = y[:n], y[n:n + m], y[n + m:]
         F = np.broadcast_to(np.asarray(self.friction, dtype=float), (m,))
-        a = ln + self.rho * (self.N @ u)
+        a = ln + self.rho * (self.N @ u - self.gap)
         b = lt + self.rho * (self.T @ u)
         return a, b - F * ln, b + F * ln
 
@@ -521,10 +547,10 @@ class SolutionPath:
     def save(self, path) -> str:
         """Write the path to a directory ``path`` (created; replaced atomically if it exists).
 
-        Format (version 1): ``path.json`` holds the structure (method, options, status, stats,
+        Format (version 2): ``path.json`` holds the structure (method, options, status, stats,
         branches with sets and orientation, transitions, events); ``fields.npz`` holds the
-        arrays (alphas, ys, point_branch, per-branch Y1/Y2, N and T in CSR form, friction,
-        geometry of a FEM model).  Lazy branches are formed first (one batched solve), so
+        arrays (alphas, ys, point_branch, the branches in reference form -- alpha_ref, Y_ref,
+        dY --, N and T in CSR form, friction, gap, geometry of a FEM model).  Lazy branches are formed first (one batched solve), so
         the saved file is the same as for an eagerly formed path.
         """
         path = os.fspath(path)
@@ -542,12 +568,13 @@ class SolutionPath:
                 json.dump(jsonable(meta, strict=False), fh, indent=1)
             self.form()
             arrays = {"alphas": self.alphas, "ys": self.ys, "point_branch": self.point_branch,
-                      "friction": np.asarray(self.friction, dtype=float),
+                      "friction": np.asarray(self.friction, dtype=float), "gap": self.gap,
                       "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
                       "T_data": self.T.data, "T_indices": self.T.indices, "T_indptr": self.T.indptr}
             if self.branches:
-                arrays["Y1"] = np.stack([self._Y[b.index][0] for b in self.branches])
-                arrays["Y2"] = np.stack([self._Y[b.index][1] for b in self.branches])
+                arrays["alpha_ref"] = np.array([self._Y[b.index][0] for b in self.branches])
+                arrays["Y_ref"] = np.stack([self._Y[b.index][1] for b in self.branches])
+                arrays["dY"] = np.stack([self._Y[b.index][2] for b in self.branches])
             if self.geometry is not None:
                 arrays.update({"geometry_" + k: v for k, v in self.geometry.to_dict().items()})
             np.savez_compressed(os.path.join(tmp, "fields.npz"), **arrays)
@@ -572,7 +599,7 @@ class SolutionPath:
             raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
         with open(jpath) as fh:
             meta = json.load(fh)
-        if meta.get("format") != "cfcontact-path" or meta.get("version") != FORMAT_VERSION:
+        if meta.get("format") != "cfcontact-path" or meta.get("version") not in (1, FORMAT_VERSION):
             raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
         with np.load(os.path.join(path, "fields.npz")) as z:
             arrays = {k: z[k] for k in z.files}
@@ -586,14 +613,17 @@ class SolutionPath:
             geometry = ContactGeometry.from_dict({k[len("geometry_"):]: v for k, v in arrays.items()
                                                   if k.startswith("geometry_")})
         p = cls(n, m, N, T, friction, meta["rho"], meta["method"], meta["alpha_start"], meta["alpha_end"],
-                meta["options"], geometry)
+                meta["options"], geometry, arrays.get("gap"))
         p._alphas = [float(a) for a in arrays["alphas"]]
         ys = arrays["ys"]
         p._ys = _Points(p, [ys[i] for i in range(ys.shape[0])])
         p._point_branch = [int(b) for b in arrays["point_branch"]]
         p.branches = [Branch.from_dict(d) for d in meta["branches"]]
         for b in p.branches:
-            p._Y[b.index] = (arrays["Y1"][b.index], arrays["Y2"][b.index])
+            if "Y_ref" in arrays:
+                p._Y[b.index] = (float(arrays["alpha_ref"][b.index]), arrays["Y_ref"][b.index], arrays["dY"][b.index])
+            else:  # version 1: the points at alpha = 0 and 1
+                p._Y[b.index] = (0.0, arrays["Y1"][b.index], arrays["Y2"][b.index] - arrays["Y1"][b.index])
         p.transitions = [Transition.from_dict(d) for d in meta["transitions"]]
         p.events = [PathEvent(**d) for d in meta["events"]]
         p.status = meta["status"]

@@ -10,9 +10,8 @@ whose answer decides what happens next:
   then continue -- a checkpoint is a save, the run is not stopped;
 * anything else truthy: stop there (status "stopped by callback", ``path.resume_state`` set).
 
-:class:`cfcontact.seed.SeedStepper` advances one accepted point at a time and its resume state
-is always current.  The exact method (:mod:`cfcontact.exact`) still runs a callback-driven loop;
-:class:`cfcontact.exact_stepper.ExactStepper` adapts it.
+:class:`cfcontact.seed.SeedStepper` and :class:`cfcontact.exact.ExactStepper` advance one
+accepted point at a time (a step, a transition) and their resume state is always current.
 """
 
 from __future__ import annotations

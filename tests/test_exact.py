@@ -165,13 +165,20 @@ def test_branch_points_reported_and_followed():
         [("open", "slip+"), ("slip+", "open"), ("slip+", "slip+")]
     assert all(a["orientation"] == -1 and a["kind"] == "fold" for a in first.data["alternatives"])
     assert sum(a["chosen"] for a in first.data["alternatives"]) == 1
-    # the main path alone misses solutions; following every alternative finds all 9 = 3 x 3
+    # the main path alone misses solutions; following every alternative finds all 9 = 3 x 3.  The
+    # solutions of the two identical nodes form, besides the path, closed curves (the product of the
+    # two middle segments of the nodes' S-shaped curves): an alternative may run around one of them
+    # and come back to its first branch ("closed_loop", reported with its data), never cycle.
     assert len(path.solutions_at(0.45)) < 9
+    statuses = []
     for i in bps:
         for k in range(len(path.events[i].data["alternatives"])):
             if not path.events[i].data["alternatives"][k]["chosen"]:
                 res = follow_alternative(system, path, i, k)
-                assert res["status"] == "completed"
+                statuses.append(res["status"])
+                assert res["status"] in ("completed", "closed_loop")
+                if res["status"] == "closed_loop":
+                    assert path.events[-1].kind == "closed_loop"
                 b0 = path.branches[res["branches"][0]]
                 assert b0.parent == path.events[i].branch and b0.origin is not None
                 assert path.events[i].data["followed"][str(k)] is res
@@ -185,7 +192,11 @@ def test_branch_points_reported_and_followed():
 def test_dead_end_is_reported_not_raised(monkeypatch):
     import cfcontact.exact as ex
 
-    monkeypatch.setattr(ex, "_continuations", lambda *a, **k: ([], {"nodes": [0], "admissible": {}, "candidates": 0}))
+    def no_crossing(*a, **k):
+        raise ex._Unresolved("singular", "no branch continues here (test)")
+
+    monkeypatch.setattr(ex, "_resolve", no_crossing)
+    monkeypatch.setattr(ex, "_enumerated_continuations", lambda *a, **k: [])
     path = cfcontact.trace_path(one_node(2.5, K1), 0.0, 1.0, method="exact")
     assert path.status == "stuck" and path.events[-1].kind == "dead_end"
     assert path.branches[0].alpha_exit == pytest.approx(path.events[-1].alpha)
@@ -480,34 +491,33 @@ def test_exact_resume_bad_input(tmp_path):
 
 
 def test_steep_constraint_missing_zero_by_rounding_is_a_tie():
-    """At a transition alpha* computed from one line, a steep constraint of the next line (e.g.
-    rho N u of a node that just opened, on a stiff-on-soft model) misses zero by its slope times
-    the rounding error of alpha*, with either sign; that is a tie when its own root lies within
-    ALPHA_WINDOW, so the line continues only in the direction where the constraint grows.  A
-    negative value whose root lies further away stays a violation in both directions."""
+    """A branch is evaluated at its own reference point (the transition alpha* where the path enters
+    it), so a steep constraint that vanishes there (e.g. rho N u of a node that just opened, on a
+    stiff-on-soft model) misses zero by its own rounding only, with either sign: that is a tie, so
+    the branch continues only in the direction where the constraint grows, and its root behind
+    alpha* is no transition.  A negative value beyond rounding stays a violation in both directions."""
     from types import SimpleNamespace
 
-    from cfcontact.exact import ALPHA_WINDOW, OPEN, TIE_RTOL, _Line, _valid_directions, state_constraints
+    from cfcontact.exact import OPEN, TIE_RTOL, _exit, _Line, _directions
 
     codes = np.array([OPEN], dtype=np.int8)  # one open node: constraint -a >= 0
-    cidx, csgn, cnode = state_constraints(codes, [0])
-    ctx = SimpleNamespace(rtol=TIE_RTOL)
-    slope_a = -1.6e7  # a(alpha) = a1 + alpha * slope_a, so -a grows with alpha
+    slope_a = -1.6e7  # a(alpha) = a(0.5) + (alpha - 0.5) * slope_a, so -a grows with alpha
+    scale = 1e9  # the local size of the data (multipliers, rho w)
+    ctx = SimpleNamespace(lo=0.0, hi=1.0)
 
-    def line(a_half):  # a(0.5) = a_half
-        a1 = a_half - 0.5 * slope_a
-        g1, g2 = np.array([a1, 0.0, 0.0]), np.array([a1 + slope_a, 0.0, 0.0])
-        return _Line(codes, None, np.zeros(2), np.zeros(2), g1, g2, cidx, csgn, cnode, None)
+    def line(a_half):
+        g, dg = np.array([a_half, 0.0, 0.0]), np.array([slope_a, 0.0, 0.0])
+        return _Line(codes, b"k", 0.5, np.zeros(2), np.zeros(2), g, dg, scale, 1e7, TIE_RTOL, np.array([0]))
 
-    ln = line(1e-3)  # -a(0.5) = -1e-3: beyond tol_v (8e-4) but its root is 6e-11 ahead
-    assert -ln.values(0.5)[0] > ln.tol_v(0.5, TIE_RTOL)
-    assert 1e-3 / 1.6e7 < ALPHA_WINDOW
-    assert _valid_directions(ctx, ln, 0.5) == (True, False)
-    assert _valid_directions(ctx, line(1.0), 0.5) == (False, False)  # root 6e-8 ahead: a violation
-    assert _valid_directions(ctx, line(-1.0), 0.5) == (True, True)  # positive: consistent both ways
-    # the mirror case (seen on Debian 13 where Debian 12 gave the negative value): +1e-3 beyond
-    # tol_v, its root 6e-11 behind: it vanishes here, so the line cannot go backwards
-    assert _valid_directions(ctx, line(-1e-3), 0.5) == (True, False)
+    tol = TIE_RTOL * scale
+    for a_half in (0.3 * tol, -0.3 * tol):  # rounding of either sign
+        ln = line(a_half)
+        assert _directions(ln) == (True, False)
+        assert _exit(ctx, ln, 0.5, 1) == (None, None, None)  # nothing vanishes ahead
+        a_star, tied, _ = _exit(ctx, ln, 0.5, -1)  # backwards it vanishes at once
+        assert abs(a_star - 0.5) <= tol / abs(slope_a) and list(tied) == [0]  # within its rounding
+    assert _directions(line(10 * tol)) == (False, False)  # -a = -10 tol < 0: a violation
+    assert _directions(line(-10 * tol)) == (True, True)  # positive: consistent both ways
 
 
 def test_follow_alternative_stopped_by_callback_keeps_the_main_resume_state():
