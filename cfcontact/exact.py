@@ -414,6 +414,32 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     return a_star, tied, float(err[j])
 
 
+def _recenter(ctx: _Context, ln: _Line, s: int, a_star: float, alpha_from: float):
+    """(line, alpha*, tied, uncertainty): ln evaluated afresh at its transition point alpha* (values
+    extrapolated from its entry carry the rounding of its rates times the distance), the point
+    corrected to the first root as seen from there, and the constraints that vanish there within
+    their own rounding.  Used when several roots tie on ln: it keeps roots apart that the
+    extrapolation could not separate."""
+    lc = ln
+    for _ in range(4):
+        lc = ctx.line(ln.codes, a_star)
+        sdc = s * lc.dc
+        dec = (sdc < -lc.tol_s).nonzero()[0]
+        if not dec.size:
+            return ln, a_star, np.zeros(0, dtype=np.intp), 0.0
+        rate = -sdc[dec]
+        t = lc.c[dec] / rate  # distance of each root from alpha* (negative: behind)
+        unc = lc.tol_v[dec] / rate
+        j = int(t.argmin())
+        moved = a_star + s * float(t[j])
+        if abs(t[j]) > unc[j] and s * (moved - alpha_from) >= 0 and ctx.lo <= moved <= ctx.hi:
+            a_star = moved  # the first root lies measurably elsewhere: look again from there
+            continue
+        tied = dec[np.abs(t - t[j]) <= unc + unc[j]]
+        return lc, a_star, tied, float(unc[j])
+    return lc, a_star, dec[np.abs(t - t[j]) <= unc + unc[j]], float(unc[j])
+
+
 # ------------------------------------------------------------------ pivoting
 def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 1, start: bool = False):
     """Cross the transition point a_star of branch (ln, s), whose constraints ``tied`` vanish there,
@@ -616,10 +642,11 @@ def _vanishing(ctx, ln, idx):
 
 
 def _changes(ln, nxt, vanishing):
+    """The nodes whose state changes (with the set of their vanishing constraint, when one did)."""
     changes, seen = [], set()
     for ch in vanishing:
         i = ch["node"]
-        if i in seen:
+        if i in seen or ln.codes[i] == nxt.codes[i]:
             continue
         seen.add(i)
         changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
@@ -704,7 +731,10 @@ def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
     out = [(nxt, d)]
 
     def add(c, dd):
-        if not any(dd == d2 and _same_line(c, o) for o, d2 in out):
+        # an alternative must hold on its own, at the precision of its own line (an order of two
+        # roots that only the perturbation decided is no second branch)
+        ok = _directions(c)[0 if dd > 0 else 1]
+        if ok and not any(dd == d2 and _same_line(c, o) for o, d2 in out):
             out.append((c, dd))
 
     # the opposite perturbation pairs the rays of the point differently; it applies when no
@@ -718,7 +748,11 @@ def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
             add(c2, d2)
         except _Unresolved:
             pass
-    nodes = sorted(set(ln.cnode[tied].tolist()) | {p["node"] for p in pivots})
+    # the nodes of the point: those crossed by the rule, and those with a constraint that still
+    # vanishes on the branch it leaves by (nodes tied on ln only within ln's coarser precision are
+    # separate, later transitions)
+    zero_exit = np.abs(nxt.c) <= nxt.tol_v
+    nodes = sorted({p["node"] for p in pivots} | set(nxt.cnode[zero_exit].tolist()))
     if len(nodes) <= ENUMERATION_CHECK_NODES:
         for c, dd in _enumerated_continuations(ctx, ln, s, a_star, nodes):
             add(c, dd)
@@ -770,7 +804,12 @@ class _Walk:
             path.events.append(PathEvent("max_transitions", a_star, f"transition cap {limit} reached (raise "
                                          f"max_transitions to trace further)", branch.index))
             return "status", "max_transitions"
-        res = _transition_point(ctx, path, branch, ln, s, a_star, tied, a_err, self.alpha)
+        at = ln
+        if len(tied) > 1:
+            at, a_star, tied, a_err = _recenter(ctx, ln, s, a_star, self.alpha)
+            if not tied.size:  # nothing vanishes when looked at closely: go on (rare)
+                at, a_star, tied, a_err = ln, a_star, tied, a_err
+        res = _transition_point(ctx, path, branch, at, s, a_star, tied, a_err, self.alpha)
         if isinstance(res, str):
             branch.alpha_exit = a_star
             path.add_point(branch, a_star)

@@ -71,24 +71,40 @@ def test_mindlin_cylinder_coarse_both_methods(mindlin_cylinder):
         assert abs(a - b) <= 2e-4
 
 
+def _groups(alphas, tol=1e-9):
+    """Indices of alphas grouped by closeness (sorted)."""
+    order = np.argsort(alphas)
+    out = []
+    for i in order:
+        if out and alphas[i] - alphas[out[-1][-1]] <= tol:
+            out[-1].append(int(i))
+        else:
+            out.append([int(i)])
+    return out
+
+
 def test_mindlin_decoupled_blocks_have_degenerate_transitions():
-    """Mirror-identical blocks (exact decoupling) on a symmetric mesh: every stick-to-slip
-    transition moves the nodes at +-x together; both methods resolve them without events, and
-    the transitions agree with Cattaneo-Mindlin within the tolerance."""
+    """Mirror-identical blocks (exact decoupling) on a symmetric mesh: the nodes at +-x start to
+    slip at the same alpha (within 1e-9); both methods pass these points without events, and the
+    transitions agree with Cattaneo-Mindlin within the tolerance.  (The seed method takes each pair
+    in one transition; the exact method takes it in one degenerate transition, or in two when the
+    roots of the two nodes differ by more than its rounding: gmsh's mesh is symmetric to ~1e-11,
+    and roots that far apart are not merged.)"""
     res = mindlin.run("blocks", ("exact", "seed"), log=lambda *a: None, nx=30)
     for method, data in res["methods"].items():
         s = data["summary"]
         assert s["status"] == "completed" and not s["events"], (method, s)
-        assert s["degenerate_transitions"] == s["transitions"] >= 2
-        for t in data["transitions"]:
-            assert len(t["changes"]) == 2
+        trans = data["transitions"]
+        assert len(trans) >= 2
+        for group in _groups(np.array([t["alpha"] for t in trans])):
+            assert sum(len(trans[i]["changes"]) for i in group) == 2, (method, [trans[i] for i in group])
         rows = data["rows"]
         assert s["all_within_tolerance"]
-        by_alpha = {}
-        for r in rows:
-            by_alpha.setdefault(round(r["alpha"], 9), []).append(r["x"])
-        for xs in by_alpha.values():
+        xs_alpha = np.array([r["alpha"] for r in rows])
+        for group in _groups(xs_alpha):
+            xs = [rows[i]["x"] for i in group]
             assert len(xs) == 2 and xs[0] == pytest.approx(-xs[1], abs=1e-9)  # (gmsh: symmetric to 1e-11)
-    ea = [t["alpha"] for t in res["methods"]["exact"]["transitions"]]
+    ea = np.array([t["alpha"] for t in res["methods"]["exact"]["transitions"]])
+    ea = [float(ea[g].mean()) for g in _groups(ea)]
     sa = [t["alpha"] for t in res["methods"]["seed"]["transitions"]]
     assert np.allclose(ea, sa, atol=2e-5)
