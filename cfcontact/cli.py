@@ -242,7 +242,7 @@ def _render_animation(args, path, ws, src):
         material = saved_material(src, path)
 
         def stress(sol):
-            return fields.von_mises(path.geometry, sol.u, material)
+            return fields.von_mises(path.geometry, sol, material)  # (at its alpha: prescribed u)
 
     res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
                                   window_size=ws or (960, 640), stress=stress)
@@ -281,7 +281,7 @@ def cmd_render(args):
         from cfcontact import fields
 
         material = saved_material(src, path)
-        stresses = [fields.von_mises(path.geometry, s.u, material) for s in sols]
+        stresses = [fields.von_mises(path.geometry, s, material) for s in sols]
     if len(sols) > 1 or args.panel:
         render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws,
                             stresses=stresses)

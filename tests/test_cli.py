@@ -200,6 +200,18 @@ BAD = [
      ["[loads] f1.top1[0].x", "lo < hi"]),
     ("unclamped body", '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[loads]\nclamp = ["left1"]\n',
      ["body 2", "Dirichlet"]),
+    # [contact] pairing keys and [loads.dirichlet] (issue #12): checked before the model is built ...
+    ("search distance zero", '[geometry]\nkind = "two_blocks"\n[contact]\npairing = "segment"\nsearch_distance = 0\n',
+     ["[contact] search_distance", "> 0"]),
+    ("slave not a contact boundary", '[geometry]\nkind = "two_blocks"\n[contact]\npairing = "segment"\n'
+     'slave = "left2"\n', ["[contact] slave", "contact1=10 or contact2=20", "left2"]),
+    # ... or while it is built (what only the mesh tells), still exit 2 with the key named
+    ("obstacle not facing", '[geometry]\nkind = "block_on_foundation"\nnx = 6\nny = 2\n[contact.obstacle]\n'
+     'kind = "circle"\ncenter = [1.5, 3.0]\nradius = 0.5\n', ["[contact.obstacle]", "does not face contact1"]),
+    ("non-matching with node pairing", '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\nnx2 = 7\n',
+     ["[contact] pairing", "non-matching", 'pairing = "segment" in [contact]']),
+    ("prescribed on a contact node", '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\n[loads.dirichlet]\n'
+     'right1 = {y = [0.0, 1.0e-3]}\n', ["[loads.dirichlet]", "non-zero prescribed displacement", "(3, 0)"]),
 ]
 
 
