@@ -154,7 +154,8 @@ def _path_keys() -> dict:
     keys = {
         "method": Key("str", "seed", '"seed"', '"seed" (predictor-corrector, Section 4) or "exact" (piecewise-affine)'),
         "backend": Key("str", "auto", None, 'DirNeu solver: "full" (J(Z) per branch), "condensed" (K factored '
-                                            'once) or "auto" (condensed for exact when m <= 2000)'),
+                                            'once) or "auto" (condensed for exact when m <= 2000 and no node lacks a '
+                                            'tangential unknown)'),
         "alpha_start": Key("float", 0.0, "0.0", "f(alpha) = (1 - alpha) f1 + alpha f2, from alpha_start"),
         "alpha_end": Key("float", 1.0, "1.0", "towards alpha_end"),
     }
@@ -606,6 +607,19 @@ def effective_pairing(case_or_contact, geometry=None) -> str:
     if "pairing" in contact:
         return contact["pairing"]
     return "segment" if kind in PRESSED_KINDS or "obstacle" in contact else "node"
+
+
+def contact_settings(geometry, contact) -> dict:
+    """The pairing a case's [geometry] and [contact] sections ask for, the library's defaults filled
+    in: {"pairing", "slave", "search_distance"} (for ``cfcontact info`` on a saved run; the
+    sections may be unvalidated text of a run's case.toml)."""
+    pairing = effective_pairing(contact, geometry)
+    slave = contact.get("slave")
+    if slave is None:
+        slave = "contact2" if pairing == "segment" and geometry.get("kind") in PRESSED_KINDS else "contact1"
+    slave = {"contact1": "contact1=10", "contact2": "contact2=20", 10: "contact1=10", 20: "contact2=20",
+             "10": "contact1=10", "20": "contact2=20"}.get(slave, str(slave))
+    return {"pairing": pairing, "slave": slave, "search_distance": contact.get("search_distance")}
 
 
 def _validate_contact(table, geometry, groups):

@@ -313,9 +313,55 @@ def cmd_export(args):
     return EXIT_OK
 
 
+def _saved_case_sections(src):
+    """The [geometry] and [contact] sections of the case a saved path was run from: the run folder's
+    case.toml (<out>/path), or the physics of a stopped run's checkpoint (<out>.partial/checkpoint/path);
+    None when there is neither (a path saved by the library)."""
+    folder = os.path.dirname(os.path.abspath(src))
+    state = os.path.join(folder, "state.json")
+    try:
+        if os.path.isfile(state):
+            with open(state) as fh:
+                sections = json.load(fh)["physics"]
+        elif os.path.isfile(os.path.join(folder, "case.toml")):
+            import tomllib
+
+            with open(os.path.join(folder, "case.toml"), "rb") as fh:
+                sections = tomllib.load(fh)
+        else:
+            return None
+        geometry, contact = sections.get("geometry") or {}, sections.get("contact") or {}
+        return geometry, contact if isinstance(geometry, dict) and isinstance(contact, dict) else None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 def cmd_info(args):
+    if args.saved.endswith(".toml") and os.path.isfile(args.saved):  # a case: build its model, report the pairing
+        import warnings
+
+        from cfcontact.case import build_system
+        from cfcontact.errors import PairingWarning
+        from cfcontact.report import format_model_report, model_report
+
+        case = load_case(args.saved)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PairingWarning)  # (the report lists the excluded nodes)
+            system = build_system(case)
+        rep = model_report(system, case["_file"])
+        print(json.dumps(rep, indent=1) if args.json else format_model_report(rep))
+        return EXIT_OK
     src, path = _load_saved(args.saved)
-    rep = path_report(path)
+    sections = _saved_case_sections(src)
+    declared = None
+    if sections is not None:
+        from cfcontact.case import contact_settings
+
+        try:
+            declared = contact_settings(*sections)
+        except (KeyError, TypeError, AttributeError):
+            declared = None
+    rep = path_report(path, declared)
     if args.json:
         print(json.dumps(rep, indent=1))
     else:
@@ -393,8 +439,12 @@ def _setup_export(sub, common):
 
 
 def _setup_info(sub, common):
-    p = sub.add_parser("info", parents=[common], help="transitions, folds, multiplicity, events and stats of a path")
-    p.add_argument("saved", metavar="SAVED_PATH_DIR")
+    p = sub.add_parser("info", parents=[common], help="transitions, folds, multiplicity, events, stats and contact "
+                                                      "pairing of a path; the model and pairing of a case",
+                       description="A saved path: status, transitions, folds, multiplicity, events, statistics and "
+                                   "its contact pairing. A case file (CASE.toml): builds its model and reports its "
+                                   "size and pairing (pairs, excluded nodes, initial gap).")
+    p.add_argument("saved", metavar="SAVED_PATH_DIR|CASE.toml")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_info)
 
