@@ -160,31 +160,6 @@ def test_half_model_refuses_a_tangential_shift():
         cfcontact.cylinder_on_block(**CYL, indentation="deep")
 
 
-# ------------------------------------------------------------------ README pictures
-NEW_VARIANTS = ("cylinder", "punch", "nonmatching", "obstacle")
-
-
-def test_readme_pictures_of_the_new_variants():
-    from matplotlib.image import imread
-
-    readme = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
-    for v in NEW_VARIANTS:
-        fn = os.path.join(ROOT, "docs", "img", f"{v}.png")
-        img = imread(fn)
-        assert img.shape[:2] == (360, 600) and img[..., :3].std() > 0.02, fn
-        assert os.path.getsize(fn) < 150_000, fn
-        assert f"docs/img/{v}.png" in readme, v
-
-
-@pytest.mark.slow  # (a render)
-def test_pictures_script_renders_a_python_built_variant(tmp_path):
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "nonmatching",
-                           "-o", str(tmp_path)], capture_output=True, text=True, timeout=600, cwd=ROOT,
-                          env=dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", "")))
-    assert proc.returncode == 0, proc.stderr
-    assert sorted(os.listdir(tmp_path)) == ["nonmatching.png"] and "m = 12" in proc.stdout
-
-
 def test_saved_path_keeps_the_new_geometry_data(tmp_path, cylinder):
     """ContactGeometry's tributary lengths, prescribed displacements and obstacle go through
     SolutionPath.save/load (optional entries: paths saved before them still load)."""
