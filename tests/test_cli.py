@@ -119,6 +119,23 @@ def test_example_cases_run(cases, name):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name,slave,transitions", [("cylinder", "contact2=20", 12), ("punch", "contact2=20", 1),
+                                                     ("nonmatching", "contact1=10", 7), ("obstacle", "contact1=10", 6),
+                                                     ("half_cylinder", "contact2=20", 12)])
+def test_example_contact_geometry_cases_run(cases, name, slave, transitions):
+    """The example cases of the contact geometry run to the end without events (half_cylinder: the
+    seed method from the zero load, as many transitions as the full cylinder)."""
+    case = str(cases / f"{name}.toml")
+    assert cli.main(["run", case, "-q"]) == 0
+    out = cases / f"{name}_out"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and not summary["events"]
+    assert len(summary["transitions"]) == transitions
+    assert summary["contact"]["pairing"] == "segment" and summary["contact"]["slave"] == slave
+    _assert_picture(str(out / "panel.png"), (800, 500))
+
+
+@pytest.mark.slow
 def test_example_case_via_python_m(cases):
     """python -m cfcontact run, in a subprocess (the foundation example)."""
     case = str(cases / "foundation.toml")
