@@ -599,14 +599,12 @@ def _check_msh_loads(table, geometry):
             raise CaseError(f"[loads] {key} is missing: kind = 'msh' needs {what}")
 
 
-def effective_pairing(case_or_contact, geometry=None) -> str:
-    """The pairing a case asks for: [contact] pairing, else "segment" for the pressed kinds and
-    with an obstacle, else "node" (the library's defaults)."""
-    contact = case_or_contact.get("contact", case_or_contact) if geometry is None else case_or_contact
-    kind = (case_or_contact["geometry"] if geometry is None else geometry)["kind"]
+def effective_pairing(contact, geometry) -> str:
+    """The pairing a case's [contact] and [geometry] sections ask for: [contact] pairing, else
+    "segment" for the pressed kinds and with an obstacle, else "node" (the library's defaults)."""
     if "pairing" in contact:
         return contact["pairing"]
-    return "segment" if kind in PRESSED_KINDS or "obstacle" in contact else "node"
+    return "segment" if geometry.get("kind") in PRESSED_KINDS or "obstacle" in contact else "node"
 
 
 def contact_settings(geometry, contact) -> dict:
