@@ -29,7 +29,7 @@ from typing import Any, Optional
 from cfcontact.errors import InputError
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
 from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
-from cfcontact.pairing import PAIRINGS
+from cfcontact.pairing import OBSTACLE_KEYS, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
            "build_system", "physics", "path_request", "parse_component", "reference_text"]
@@ -280,7 +280,6 @@ def _subtable(where):
     return f"{section}.{key}]" if key else where
 
 
-OBSTACLE_KEYS = {"line": ("point", "normal"), "circle": ("center", "radius")}
 _OBSTACLE_DOCS = {"point": "a point of the line", "normal": "its normal, pointing out of the obstacle toward the body",
                   "center": "the centre of the rigid disc", "radius": "its radius > 0"}
 

@@ -313,25 +313,27 @@ def cmd_export(args):
     return EXIT_OK
 
 
-def _saved_case_sections(src):
-    """The [geometry] and [contact] sections of the case a saved path was run from: the run folder's
-    case.toml (<out>/path), or the physics of a stopped run's checkpoint (<out>.partial/checkpoint/path);
-    None when there is neither (a path saved by the library)."""
+def _saved_contact_settings(src):
+    """The pairing asked for by the case a saved path was run from (:func:`cfcontact.case.contact_settings`
+    of the [geometry] and [contact] sections of the run folder's case.toml, <out>/path, or of a stopped
+    run's checkpoint, <out>.partial/checkpoint/path); None when there is neither (a path saved by the
+    library) or it cannot be read."""
+    from cfcontact.case import contact_settings
+
     folder = os.path.dirname(os.path.abspath(src))
-    state = os.path.join(folder, "state.json")
+    state, toml = os.path.join(folder, "state.json"), os.path.join(folder, "case.toml")
     try:
         if os.path.isfile(state):
             with open(state) as fh:
                 sections = json.load(fh)["physics"]
-        elif os.path.isfile(os.path.join(folder, "case.toml")):
+        elif os.path.isfile(toml):
             import tomllib
 
-            with open(os.path.join(folder, "case.toml"), "rb") as fh:
+            with open(toml, "rb") as fh:
                 sections = tomllib.load(fh)
         else:
             return None
-        geometry, contact = sections.get("geometry") or {}, sections.get("contact") or {}
-        return geometry, contact if isinstance(geometry, dict) and isinstance(contact, dict) else None
+        return contact_settings(sections.get("geometry") or {}, sections.get("contact") or {})
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
 
@@ -352,16 +354,7 @@ def cmd_info(args):
         print(json.dumps(rep, indent=1) if args.json else format_model_report(rep))
         return EXIT_OK
     src, path = _load_saved(args.saved)
-    sections = _saved_case_sections(src)
-    declared = None
-    if sections is not None:
-        from cfcontact.case import contact_settings
-
-        try:
-            declared = contact_settings(*sections)
-        except (KeyError, TypeError, AttributeError):
-            declared = None
-    rep = path_report(path, declared)
+    rep = path_report(path, _saved_contact_settings(src))
     if args.json:
         print(json.dumps(rep, indent=1))
     else:
