@@ -29,6 +29,7 @@ from typing import Any, Optional
 from cfcontact.errors import InputError
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
 from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
+from cfcontact.pairing import OBSTACLE_KEYS, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
            "build_system", "physics", "path_request", "parse_component", "reference_text"]
@@ -50,7 +51,9 @@ class Key:
     doc: str = ""
 
 
-GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "arc", "msh")
+GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "arc", "cylinder", "punch", "msh")
+#: the kinds pressed on a block by a prescribed displacement of their top (cfcontact.models)
+PRESSED_KINDS = ("cylinder", "punch")
 COMPONENT_NAMES = ("u", "lam_n", "lam_t")
 #: The sections that determine the path (a resumed run must have the same).
 PHYSICS_SECTIONS = ("geometry", "material", "contact", "loads", "path")
@@ -61,7 +64,10 @@ TYPE_NAMES = {"int": "an integer", "float": "a number", "str": "a string", "bool
               "body_force": "[bx, by] or a table {body = [bx, by]}", "formats": 'a list of "png"/"pdf"',
               "component": '["lam_n", i], "lam_n:i" or an integer', "zoom": "[alpha_lo, alpha_hi] (+ [v_lo, v_hi])",
               "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them",
-              "material": "a number or a table {body = number}"}
+              "material": "a number or a table {body = number}", "tag": "a tag (name or number)",
+              "obstacle": 'a table {kind = "line", point = [x, y], normal = [nx, ny]} or {kind = "circle", '
+                          'center = [x, y], radius = R}',
+              "dirichlet": "a table {tag = {x = value, y = value}}"}
 
 _KIND = Key("str", None, '"two_blocks"', " | ".join(f'"{k}"' for k in GEOMETRY_KINDS))
 #: [geometry] keys of the block kinds ("two_blocks", "block_on_foundation", "inclined")
@@ -74,6 +80,9 @@ BLOCK_GEOMETRY = {
     "height2": Key("float", None, None, "height of body 2 (default: height)"),
     "cell": Key("str", None, '"quadrilateral"', 'or "triangle"'),
     "angle": Key("float", None, None, 'degrees counter-clockwise, required for "inclined"'),
+    "nx2": Key("int", None, None, 'cells of body 2 along the interface (default: nx); nx2 != nx is a non-matching '
+                                  'interface: pairing = "segment"'),
+    "ny2": Key("int", None, None, "cells across body 2 (default: ny)"),
 }
 #: [geometry] keys of kind "arc" (cfcontact.arc_on_block)
 ARC_GEOMETRY = {
@@ -86,6 +95,35 @@ ARC_GEOMETRY = {
     "ny": Key("int", None, "4", "cells across body 1"),
     "ny2": Key("int", None, None, "cells across body 2 (default: ny)"),
     "cell": Key("str", None, '"quadrilateral"', 'or "triangle"'),
+}
+_PRESSED_COMMON = {
+    "width": Key("float", None, "4.0", "the block [-width/2, width/2] x [-depth, 0]"),
+    "depth": Key("float", None, "2.0", "depth of the block"),
+    "size": Key("float", None, None, "element size along the contact boundaries"),
+    "size_far": Key("float", None, None, "element size far from them"),
+    "growth": Key("float", None, None, "growth of the element size per unit distance, in (0, 1)"),
+    "gap0": Key("float", None, None, "initial distance between body 1's lowest point and the block, >= 0"),
+    "cell": Key("str", None, None, '"triangle" or "quadrilateral"'),
+    "half": Key("bool", None, None, "the right half x >= 0 only, symmetry edges sym1, sym2 on x = 0"),
+}
+#: [geometry] keys of kind "cylinder" (cfcontact.cylinder_on_block)
+CYLINDER_GEOMETRY = {
+    "kind": Key("str", None, '"cylinder"', "the lower half of a cylinder pressed on a block (Hertz), initial gap"),
+    "radius": Key("float", None, "1.0", "radius R; the lowest point at (0, gap0)"),
+    **{k: v for k, v in _PRESSED_COMMON.items() if k in ("width", "depth")},
+    "zone": Key("float", None, "0.3", "contact2 = the block's top for |x| <= zone (< 0.76 R)"),
+    **{k: v for k, v in _PRESSED_COMMON.items() if k not in ("width", "depth")},
+}
+#: [geometry] keys of kind "punch" (cfcontact.rounded_punch)
+PUNCH_GEOMETRY = {
+    "kind": Key("str", None, '"punch"', "a flat punch with rounded bottom corners pressed on a block"),
+    "half_width": Key("float", None, "0.5", "the punch [-half_width, half_width] x [gap0, gap0 + height]"),
+    "edge_radius": Key("float", None, "0.1", "radius of its rounded corners (< half_width, < height)"),
+    "height": Key("float", None, None, "height of the punch"),
+    **{k: v for k, v in _PRESSED_COMMON.items() if k in ("width", "depth")},
+    "zone": Key("float", None, None, "contact2 = the block's top for |x| <= zone (default: half_width - "
+                                     "edge_radius / 4)"),
+    **{k: v for k, v in _PRESSED_COMMON.items() if k not in ("width", "depth")},
 }
 #: [geometry] keys of kind "msh" (a user's gmsh file)
 MSH_GEOMETRY = {
@@ -116,7 +154,8 @@ def _path_keys() -> dict:
     keys = {
         "method": Key("str", "seed", '"seed"', '"seed" (predictor-corrector, Section 4) or "exact" (piecewise-affine)'),
         "backend": Key("str", "auto", None, 'DirNeu solver: "full" (J(Z) per branch), "condensed" (K factored '
-                                            'once) or "auto" (condensed for exact when m <= 2000)'),
+                                            'once) or "auto" (condensed for exact when m <= 2000 and no node lacks a '
+                                            'tangential unknown)'),
         "alpha_start": Key("float", 0.0, "0.0", "f(alpha) = (1 - alpha) f1 + alpha f2, from alpha_start"),
         "alpha_end": Key("float", 1.0, "1.0", "towards alpha_end"),
     }
@@ -140,6 +179,14 @@ SCHEMA = {
     "contact": {
         "friction": Key("friction", 0.0, "0.5", "Coulomb coefficient >= 0, or a list with one per contact node"),
         "rho": Key("float", None, None, "augmentation parameter > 0 (default: automatic)"),
+        "pairing": Key("str", None, None, '"node" (matching nodes, no gap) or "segment" (node to segment, with the '
+                                          'initial gap; default for "cylinder", "punch" and an obstacle)'),
+        "slave": Key("tag", None, None, 'the contact boundary projected with pairing = "segment": "contact1" (default) '
+                                        'or "contact2" (default for "cylinder", "punch")'),
+        "search_distance": Key("float", None, None, 'pairing = "segment" leaves out slave nodes farther than this '
+                                                    "from the master, > 0 (default: no limit)"),
+        "obstacle": Key("obstacle", None, None, "a rigid obstacle as master of body 1 (a model without body 2); "
+                                                "see [contact.obstacle] below"),
     },
     "loads": {
         "clamp": Key("tags", None, '["left1", "left2"]', "boundary tags (names or numbers) with u = 0"),
@@ -148,6 +195,8 @@ SCHEMA = {
         "f1": Key("tractions", None, "{top1 = [2.0e7, -1.0e8]}",
                   "surface tractions of f1, tag = [tx, ty] (force per length); see below"),
         "f2": Key("tractions", None, "{top1 = [1.0e8, -2.0e7]}", "surface tractions of f2"),
+        "dirichlet": Key("dirichlet", None, None, "prescribed displacement components along the path; see "
+                                                  "[loads.dirichlet] below"),
     },
     "path": _path_keys(),
     "output": {
@@ -171,11 +220,8 @@ TOP_LEVEL = ("title", *SCHEMA)
 
 def geometry_keys(kind) -> dict:
     """The [geometry] keys of a geometry kind."""
-    if kind == "msh":
-        return MSH_GEOMETRY
-    if kind == "arc":
-        return ARC_GEOMETRY
-    return BLOCK_GEOMETRY
+    return {"msh": MSH_GEOMETRY, "arc": ARC_GEOMETRY, "cylinder": CYLINDER_GEOMETRY,
+            "punch": PUNCH_GEOMETRY}.get(kind, BLOCK_GEOMETRY)
 
 
 # ------------------------------------------------------------------ value checks
@@ -218,6 +264,81 @@ def _traction(value, where):
     return _vec2(value, where)
 
 
+def _pressed_default(kind, name):
+    """The default of a keyword of the model builder of a pressed kind (cfcontact.models)."""
+    import inspect
+
+    from cfcontact import models
+
+    builder = {"cylinder": models.cylinder_on_block, "punch": models.rounded_punch}[kind]
+    return inspect.signature(builder).parameters[name].default
+
+
+def _subtable(where):
+    """"[contact] obstacle" -> "[contact.obstacle]": how a user writes a table inside a section."""
+    section, _, key = where.partition("] ")
+    return f"{section}.{key}]" if key else where
+
+
+_OBSTACLE_DOCS = {"point": "a point of the line", "normal": "its normal, pointing out of the obstacle toward the body",
+                  "center": "the centre of the rigid disc", "radius": "its radius > 0"}
+
+
+def _obstacle(value, where):
+    """{kind = "line", point, normal} / {kind = "circle", center, radius}, checked key by key."""
+    where = _subtable(where)
+    if not isinstance(value, dict):
+        raise CaseError(f"{where}: expected {TYPE_NAMES['obstacle']}, got {_tname(value)} {value!r}")
+    kind = value.get("kind")
+    if kind not in OBSTACLE_KEYS:
+        raise CaseError(f"{where} kind: expected \"line\" (with point, normal) or \"circle\" (with center, "
+                        f"radius), got {kind!r}")
+    keys = OBSTACLE_KEYS[kind]
+    unknown = sorted(set(value) - set(keys) - {"kind"})
+    if unknown:
+        raise CaseError(f"unknown key {unknown[0]!r} in {where} (kind = {kind!r}); valid keys: kind, {', '.join(keys)}")
+    out = {"kind": kind}
+    for key in keys:
+        if key not in value:
+            raise CaseError(f"{where} {key} is missing: kind = {kind!r} needs {', '.join(keys)} ({key}: "
+                            f"{_OBSTACLE_DOCS[key]})")
+        if key == "radius":
+            out[key] = _check_value("float", value[key], f"{where} radius")
+            if not out[key] > 0:
+                raise CaseError(f"{where} radius: must be > 0, got {value[key]!r}")
+        else:
+            out[key] = _vec2(value[key], f"{where} {key}")
+    if kind == "line" and out["normal"] == [0.0, 0.0]:
+        raise CaseError(f"{where} normal: must not be zero (it points out of the obstacle toward the body)")
+    return out
+
+
+def _dirichlet(value, where):
+    """{tag = {x = v | [v1, v2], y = ...}} -> {tag: {"x": [v1, v2], ...}} (tags checked later)."""
+    where = _subtable(where)
+    if not isinstance(value, dict):
+        raise CaseError(f"{where}: expected {TYPE_NAMES['dirichlet']}, got {_tname(value)} {value!r}")
+    out = {}
+    for tag, comps in value.items():
+        here = f"{where} {tag}"
+        if not isinstance(comps, dict) or not comps:
+            raise CaseError(f"{here}: expected a table of components, e.g. {{x = 0.0}} or {{y = [0.0, -1.0e-3]}}, "
+                            f"got {_tname(comps)} {comps!r}")
+        unknown = sorted(set(comps) - {"x", "y"})
+        if unknown:
+            raise CaseError(f"{here}: unknown component {unknown[0]!r}; valid: x, y")
+        out[tag] = {}
+        for comp, v in comps.items():
+            if _is_number(v):
+                v = [v, v]
+            if not (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)) \
+                    or not all(math.isfinite(x) for x in v):
+                raise CaseError(f"{here}.{comp}: expected a number or [value at alpha = 0, value at alpha = 1], "
+                                f"got {_tname(v)} {v!r}")
+            out[tag][comp] = [float(x) for x in v]
+    return out
+
+
 def _check_value(typ, value, where):
     """Normalised value or CaseError naming ``where`` (e.g. "[contact] friction"), the expected type and the got."""
     bad = CaseError(f"{where}: expected {TYPE_NAMES[typ]}, got {_tname(value)} {value!r}")
@@ -245,6 +366,14 @@ def _check_value(typ, value, where):
         if not isinstance(value, list) or not all(isinstance(t, (str, int)) and not isinstance(t, bool) for t in value):
             raise bad
         return list(value)
+    if typ == "tag":
+        if isinstance(value, bool) or not isinstance(value, (str, int)):
+            raise bad
+        return value
+    if typ == "obstacle":
+        return _obstacle(value, where)
+    if typ == "dirichlet":
+        return _dirichlet(value, where)
     if typ == "material":
         if isinstance(value, dict):
             if not value:
@@ -351,9 +480,26 @@ def _file_sha256(path):
 
 def _geometry_script(kind):
     """The gmsh script module of a built-in kind (imports gmsh)."""
-    from cfcontact.meshes import arc_on_block, two_blocks
+    from cfcontact.meshes import arc_on_block, cylinder_on_block, rounded_punch, two_blocks
 
-    return arc_on_block if kind == "arc" else two_blocks
+    return {"arc": arc_on_block, "cylinder": cylinder_on_block, "punch": rounded_punch}.get(kind, two_blocks)
+
+
+_BODY2_PIECES = ("body2", "contact2", "bottom2", "right2", "left2")
+_BODY1_PIECES = ("body1", "contact1", "top1", "right1", "left1")
+
+
+def builtin_groups(kind, geometry) -> tuple:
+    """The names of the physical groups the script of a built-in kind creates (tags: the scripts'
+    TAGS; a test compares them with the scripts' own build)."""
+    if kind == "block_on_foundation":
+        return _BODY1_PIECES
+    if kind in PRESSED_KINDS:
+        names = _BODY1_PIECES + _BODY2_PIECES + ("top2",)
+        if geometry.get("half"):
+            names = tuple(n for n in names if n not in ("left1", "left2")) + ("sym1", "sym2")
+        return names
+    return _BODY1_PIECES + _BODY2_PIECES
 
 
 # ------------------------------------------------------------------ validation
@@ -375,11 +521,10 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
         case["title"] = _check_value("str", raw["title"], "title")
     case["geometry"] = geometry = _validate_geometry(raw.get("geometry"), base_dir)
     case["material"] = material = _validate_material(raw.get("material", {}))
-    contact = _check_section("contact", raw.get("contact", {}), SCHEMA["contact"])
-    if "rho" in contact and not contact["rho"] > 0:
-        raise CaseError(f"[contact] rho: must be > 0, got {contact['rho']!r}")
-    case["contact"] = contact
-    case["loads"] = _validate_loads(raw.get("loads", {}), geometry, material)
+    _check_msh_loads(raw.get("loads", {}), geometry)
+    groups = _model_groups(geometry["kind"], geometry)
+    case["contact"] = _validate_contact(raw.get("contact", {}), geometry, groups)
+    case["loads"] = _validate_loads(raw.get("loads", {}), geometry, material, groups)
     case["path"], case["_request"] = _validate_path(raw.get("path", {}))
     output = _check_section("output", raw.get("output", {}), SCHEMA["output"])
     if output["animation_format"] not in ("gif", "mp4", "frames"):
@@ -416,6 +561,10 @@ def _validate_geometry(geo, base_dir):
         return geometry
     if kind == "inclined" and "angle" not in geometry:
         raise CaseError("[geometry] angle is missing: kind = 'inclined' needs the angle in degrees")
+    if kind == "block_on_foundation":
+        extra = [k for k in ("height2", "nx2", "ny2") if k in geometry]
+        if extra:
+            raise CaseError(f"[geometry] {extra[0]}: kind = 'block_on_foundation' has no body 2")
     try:
         _geometry_script(kind).check_parameters(**{k: v for k, v in geometry.items() if k != "kind"})
     except (InputError, ValueError) as exc:
@@ -439,16 +588,81 @@ def _validate_material(table):
     return material
 
 
-def _validate_loads(table, geometry, material):
+def _check_msh_loads(table, geometry):
+    """kind = "msh" has no default loads: clamp, [loads.f1] and [loads.f2] are required."""
+    if geometry["kind"] != "msh" or not isinstance(table, dict):
+        return
+    for key in ("clamp", "f1", "f2"):
+        if key not in table:
+            what = "clamp = [tags]" if key == "clamp" else f"a table [loads.{key}] (may be empty)"
+            raise CaseError(f"[loads] {key} is missing: kind = 'msh' needs {what}")
+
+
+def effective_pairing(contact, geometry) -> str:
+    """The pairing a case's [contact] and [geometry] sections ask for: [contact] pairing, else
+    "segment" for the pressed kinds and with an obstacle, else "node" (the library's defaults)."""
+    if "pairing" in contact:
+        return contact["pairing"]
+    return "segment" if geometry.get("kind") in PRESSED_KINDS or "obstacle" in contact else "node"
+
+
+def contact_settings(geometry, contact) -> dict:
+    """The pairing a case's [geometry] and [contact] sections ask for, the library's defaults filled
+    in: {"pairing", "slave", "search_distance"} (for ``cfcontact info`` on a saved run; the
+    sections may be unvalidated text of a run's case.toml)."""
+    pairing = effective_pairing(contact, geometry)
+    slave = contact.get("slave")
+    if slave is None:
+        slave = "contact2" if pairing == "segment" and geometry.get("kind") in PRESSED_KINDS else "contact1"
+    slave = {"contact1": "contact1=10", "contact2": "contact2=20", 10: "contact1=10", 20: "contact2=20",
+             "10": "contact1=10", "20": "contact2=20"}.get(slave, str(slave))
+    return {"pairing": pairing, "slave": slave, "search_distance": contact.get("search_distance")}
+
+
+def _validate_contact(table, geometry, groups):
+    """[contact]: friction, rho, and the pairing keys (pairing, slave, search_distance, obstacle)
+    checked against the model: a slave must be one of its contact boundaries, an obstacle needs a
+    model without body 2, segment pairing needs a master."""
+    contact = _check_section("contact", table, SCHEMA["contact"])
+    if "rho" in contact and not contact["rho"] > 0:
+        raise CaseError(f"[contact] rho: must be > 0, got {contact['rho']!r}")
+    if "pairing" in contact and contact["pairing"] not in PAIRINGS:
+        raise CaseError(f"[contact] pairing: expected {' or '.join(map(json.dumps, PAIRINGS))}, "
+                        f"got {contact['pairing']!r}")
+    if "search_distance" in contact and not contact["search_distance"] > 0:
+        raise CaseError(f"[contact] search_distance: must be > 0 (leave it out for no limit), got "
+                        f"{contact['search_distance']!r}")
+    pairing = effective_pairing(contact, geometry)
+    body2 = (2, 2) in groups
+    if "obstacle" in contact:
+        if body2:
+            where = ('kind = "block_on_foundation"' if geometry["kind"] != "msh" else "a .msh without body2")
+            raise CaseError(f"[contact.obstacle]: an obstacle is the master of a single body, but kind = "
+                            f"{geometry['kind']!r} has body 2; use {where}")
+        if pairing != "segment":
+            raise CaseError('[contact] pairing: an obstacle is paired node to segment: use pairing = "segment" '
+                            "(or leave pairing out)")
+    elif pairing == "segment" and not body2:
+        raise CaseError('[contact] pairing: "segment" needs a master: body 2 (contact2) or a [contact.obstacle]')
+    for key in ("slave", "search_distance"):
+        if key in contact and pairing != "segment":
+            raise CaseError(f'[contact] {key}: only used with pairing = "segment" (node pairing matches the nodes '
+                            f'of contact1 and contact2); add pairing = "segment" or leave {key} out')
+    if "slave" in contact:
+        slave = contact["slave"]
+        _check_tag(slave, groups, 1, "[contact] slave")
+        number = _tag_number(slave, groups, 1)
+        valid = "contact1=10" + (" or contact2=20" if body2 and "obstacle" not in contact else "")
+        if number not in (10, 20) or (number == 20 and "obstacle" in contact):
+            raise CaseError(f"[contact] slave: must be a contact boundary ({valid}), got {slave!r}"
+                            + (f" ({groups[(1, number)]}={number})" if groups.get((1, number)) else ""))
+    return contact
+
+
+def _validate_loads(table, geometry, material, groups):
     kind = geometry["kind"]
     loads = _check_section("loads", table, SCHEMA["loads"])
-    if kind == "msh":
-        for key in ("clamp", "f1", "f2"):
-            if key not in loads:
-                what = "clamp = [tags]" if key == "clamp" else f"a table [loads.{key}] (may be empty)"
-                raise CaseError(f"[loads] {key} is missing: kind = 'msh' needs {what}")
-    groups = _model_groups(kind, geometry)
-    for key in ("clamp", "f1", "f2", "body_force1", "body_force2"):
+    for key in ("clamp", "f1", "f2", "body_force1", "body_force2", "dirichlet"):
         if key not in loads:
             continue
         val = loads[key]
@@ -459,11 +673,17 @@ def _validate_loads(table, geometry, material):
         elif isinstance(val, dict):
             for t in val:
                 _check_tag(t, groups, 2 if key.startswith("body") else 1, label)
+    if geometry.get("half") and "dirichlet" in loads:  # the symmetry conditions replaced by the user's
+        named = {_tag_number(t, groups, 1) for t in [*loads["dirichlet"], *loads.get("clamp", [])]}
+        missing = [name for name in ("sym1", "sym2") if _tag_number(name, groups, 1) not in named]
+        if missing:
+            raise CaseError(f"[loads.dirichlet]: a half model (half = true) needs its symmetry conditions, which "
+                            f"[loads.dirichlet] replaces: add {' and '.join(f'{m} = {{x = 0.0}}' for m in missing)}")
     for key in ("E", "nu"):  # per-body material: one value for each body of the model
         if isinstance(material.get(key), dict):
             for t in material[key]:
                 _check_tag(t, groups, 2, f"[material] {key}")
-            named = {_body_number(t, groups) for t in material[key]}
+            named = {_tag_number(t, groups, 2) for t in material[key]}
             missing = [name for (dim, num), name in sorted(groups.items()) if dim == 2 and num not in named]
             if missing:
                 raise CaseError(f"[material] {key}: no value for body {', '.join(missing)}; give one number "
@@ -495,8 +715,7 @@ def _model_groups(kind, geometry) -> dict:
     """{(dim, number): name} of the physical groups of the case's model."""
     if kind != "msh":
         tags = _geometry_script(kind).TAGS
-        foundation = kind == "block_on_foundation"
-        return {(d, n): name for name, (d, n) in tags.items() if not (foundation and (n == 2 or 20 <= n < 30))}
+        return {tags[name]: name for name in builtin_groups(kind, geometry)}
     import gmsh
 
     from cfcontact import compat
@@ -521,10 +740,10 @@ def _check_tag(tag, groups, dim, label):
     raise CaseError(f"{label}: unknown {kind} {tag!r}; valid: {valid or '(none)'}")
 
 
-def _body_number(tag, groups):
-    """The number of a (checked) body tag: a name, a number or a digit string."""
+def _tag_number(tag, groups, dim):
+    """The number of a (checked) tag of dimension ``dim``: a name, a number or a digit string."""
     if isinstance(tag, str) and not tag.isdigit():
-        return next(n for (d, n), name in groups.items() if d == 2 and name == tag)
+        return next(n for (d, n), name in groups.items() if d == dim and name == tag)
     return int(tag)
 
 
@@ -554,31 +773,61 @@ def physics(case) -> dict:
 
 # ------------------------------------------------------------------ model building
 def build_system(case):
-    """The ContactSystem of a validated case (imports the FEM layer)."""
+    """The ContactSystem of a validated case (imports the FEM layer).  An error of the assembly
+    that only the mesh can reveal (an obstacle that does not face the body, a non-matching
+    interface with node pairing, a prescribed displacement on a contact node) is a CaseError
+    naming the case key."""
     geo, mat, con, loads = case["geometry"], case["material"], case["contact"], case["loads"]
     common = {k: ({_tag_value(t): x for t, x in v.items()} if isinstance(v, dict) else v) for k, v in mat.items()}
     common["friction"] = con["friction"]
-    if "rho" in con:
-        common["rho"] = con["rho"]
+    for key in ("rho", "pairing", "search_distance", "obstacle"):
+        if key in con:
+            common[key] = con[key]
+    if "slave" in con:
+        common["slave"] = _tag_value(con["slave"])
     if "clamp" in loads:
         common["clamp"] = [_tag_value(t) for t in loads["clamp"]]
-    for key, arg in (("f1", "tractions1"), ("f2", "tractions2")):
+    for key, arg in (("f1", "tractions1"), ("f2", "tractions2"), ("dirichlet", "dirichlet")):
         if key in loads:
             common[arg] = {_tag_value(t): v for t, v in loads[key].items()}
     for key in ("body_force1", "body_force2"):
         if key in loads:
             v = loads[key]
             common[key] = {_tag_value(t): w for t, w in v.items()} if isinstance(v, dict) else v
+    try:
+        return _build(geo, common)
+    except InputError as exc:  # GeometryError too
+        raise CaseError(_case_message(str(exc), con)) from None
+
+
+def _build(geo, common):
     if geo["kind"] == "msh":
         from cfcontact.assembly import assemble_contact_system
 
         return assemble_contact_system(geo["file"], info={"model": "msh", "file": geo["file"]}, **common)
-    from cfcontact.models import arc_on_block, two_blocks
+    from cfcontact import models
 
     params = {k: v for k, v in geo.items() if k != "kind"}
     if geo["kind"] == "arc":
-        return arc_on_block(**params, **common)
-    return two_blocks(foundation=geo["kind"] == "block_on_foundation", **params, **common)
+        return models.arc_on_block(**params, **common)
+    if geo["kind"] == "cylinder":
+        return models.cylinder_on_block(**params, **common)
+    if geo["kind"] == "punch":
+        return models.rounded_punch(**params, **common)
+    return models.two_blocks(foundation=geo["kind"] == "block_on_foundation", **params, **common)
+
+
+def _case_message(message, contact) -> str:
+    """An assembly error in the terms of the case file: the key it concerns, one line."""
+    first = message.split("\n")[0].rstrip(": ")
+    if "non-matching contact interface" in message:
+        return "[contact] pairing: " + first.replace(" (pairing='segment')", ' (pairing = "segment" in [contact])')
+    if "obstacle" in contact and "obstacle" in message:
+        return f"[contact.obstacle]: {first}"
+    if message.startswith(("non-zero prescribed displacement", "dirichlet")) or "prescribed x displacements" in \
+            message or "prescribed y displacements" in message:
+        return f"[loads.dirichlet]: {first}"
+    return message
 
 
 def _tag_value(tag):
@@ -607,19 +856,32 @@ def _with_defaults(keys, defaults) -> dict:
 def reference_text() -> str:
     """The case-file reference (annotated TOML, itself a valid case file), rendered from :data:`SCHEMA`
     and the defaults of the geometry scripts (imports gmsh)."""
-    blocks, arc = _geometry_script("two_blocks").DEFAULTS, _geometry_script("arc").DEFAULTS
+    defaults = {kind: _geometry_script(kind).DEFAULTS for kind in ("two_blocks", "arc", "cylinder", "punch")}
     parts = [
         ["# Every section and key is optional except [geometry] kind (and the keys named 'required').",
          "title = \"optional free text\"  # the title of plots and animations"],
         _section_text("[geometry]  # kind = \"two_blocks\", \"block_on_foundation\" or \"inclined\"",
-                      _with_defaults(BLOCK_GEOMETRY, blocks)),
+                      _with_defaults(BLOCK_GEOMETRY, defaults["two_blocks"])),
         _section_text("# [geometry]  # kind = \"arc\" instead (cfcontact.arc_on_block)",
-                      _with_defaults(ARC_GEOMETRY, arc), True),
+                      _with_defaults(ARC_GEOMETRY, defaults["arc"]), True),
+        _section_text("# [geometry]  # kind = \"cylinder\" instead (cfcontact.cylinder_on_block); loads: see below",
+                      _with_defaults(CYLINDER_GEOMETRY, defaults["cylinder"]), True),
+        _section_text("# [geometry]  # kind = \"punch\" instead (cfcontact.rounded_punch); loads: see below",
+                      _with_defaults(PUNCH_GEOMETRY, {k: v for k, v in defaults["punch"].items() if k != "zone"}),
+                      True),
         _section_text("# [geometry]  # kind = \"msh\" instead: both keys required", MSH_GEOMETRY, True),
+        _section_text("[material]", SCHEMA["material"]),
+        _section_text("[contact]", {k: v for k, v in SCHEMA["contact"].items() if k != "obstacle"}),
+        _section_text(f"# [contact.obstacle]  # {SCHEMA['contact']['obstacle'].doc.split(';')[0]}: kind = "
+                      '"block_on_foundation" or a .msh', {
+                          "kind": Key("str", None, '"circle"', '"circle" (center, radius) or "line" (point, normal)'),
+                          "center": Key("vec", None, "[1.5, -10.0]", _OBSTACLE_DOCS["center"]),
+                          "radius": Key("float", None, "10.0", _OBSTACLE_DOCS["radius"]),
+                          "point": Key("vec", None, "[0.0, -1.0e-3]", f"kind = \"line\": {_OBSTACLE_DOCS['point']}"),
+                          "normal": Key("vec", None, "[0.0, 1.0]", f"kind = \"line\": {_OBSTACLE_DOCS['normal']}"),
+                      }, True),
     ]
-    for name in ("material", "contact"):
-        parts.append(_section_text(f"[{name}]", SCHEMA[name]))
-    loads = {k: v for k, v in SCHEMA["loads"].items() if k not in ("f1", "f2")}
+    loads = {k: v for k, v in SCHEMA["loads"].items() if k not in ("f1", "f2", "dirichlet")}
     parts.append(_section_text("[loads]  # required for kind = \"msh\": clamp, [loads.f1], [loads.f2]", loads))
     for key in ("f1", "f2"):
         spec = SCHEMA["loads"][key]
@@ -629,6 +891,15 @@ def reference_text() -> str:
                   "#   bottom2 = {value = [7.0e2, 0.0], x = [2.5, 2.6]}",
                   "#   top1 = [[0.0, -1.0e6], {value = [0.0, 4.0e5], x = [2.2, 2.3]}]",
                   "#   right1 = {value = [1.0e6, 0.0], y = [0.5, 1.0]}"]
+    parts.append([
+        "# [loads.dirichlet]  # prescribed displacement components (not on contact1/contact2 unless zero):",
+        "#   a number, or [value at alpha = 0, value at alpha = 1]: u_D(alpha) = (1 - alpha) u_D(0) + alpha u_D(1)",
+        "# top1 = {x = 0.0, y = [0.0, -1.0e-3]}  # the top pushed down along the path",
+        "# left1 = {x = 0.0}                     # a roller (symmetry plane): u_x = 0, u_y free",
+        f"# Defaults of kind = \"cylinder\" / \"punch\": clamp = [\"bottom2\"], top1 = {{x = 0.0, y = [0.0, -d]}} "
+        f"(d = {' / '.join(_toml(_pressed_default(k, 'indentation')[1]) for k in PRESSED_KINDS)}),",
+        "#   and with half = true sym1 = {x = 0.0}, sym2 = {x = 0.0}; a [loads.dirichlet] table replaces them all.",
+    ])
     for name in ("path", "output"):
         parts.append(_section_text(f"[{name}]", SCHEMA[name]))
     return "\n\n".join("\n".join(p) for p in parts) + "\n"

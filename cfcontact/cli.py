@@ -242,7 +242,7 @@ def _render_animation(args, path, ws, src):
         material = saved_material(src, path)
 
         def stress(sol):
-            return fields.von_mises(path.geometry, sol.u, material)
+            return fields.von_mises(path.geometry, sol, material)  # (at its alpha: prescribed u)
 
     res = render.render_animation(path, args.animation, frames=args.frames, magnification=args.magnification,
                                   window_size=ws or (960, 640), stress=stress)
@@ -281,7 +281,7 @@ def cmd_render(args):
         from cfcontact import fields
 
         material = saved_material(src, path)
-        stresses = [fields.von_mises(path.geometry, s.u, material) for s in sols]
+        stresses = [fields.von_mises(path.geometry, s, material) for s in sols]
     if len(sols) > 1 or args.panel:
         render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws,
                             stresses=stresses)
@@ -313,9 +313,48 @@ def cmd_export(args):
     return EXIT_OK
 
 
+def _saved_contact_settings(src):
+    """The pairing asked for by the case a saved path was run from (:func:`cfcontact.case.contact_settings`
+    of the [geometry] and [contact] sections of the run folder's case.toml, <out>/path, or of a stopped
+    run's checkpoint, <out>.partial/checkpoint/path); None when there is neither (a path saved by the
+    library) or it cannot be read."""
+    from cfcontact.case import contact_settings
+
+    folder = os.path.dirname(os.path.abspath(src))
+    state, toml = os.path.join(folder, "state.json"), os.path.join(folder, "case.toml")
+    try:
+        if os.path.isfile(state):
+            with open(state) as fh:
+                sections = json.load(fh)["physics"]
+        elif os.path.isfile(toml):
+            import tomllib
+
+            with open(toml, "rb") as fh:
+                sections = tomllib.load(fh)
+        else:
+            return None
+        return contact_settings(sections.get("geometry") or {}, sections.get("contact") or {})
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 def cmd_info(args):
+    if args.saved.endswith(".toml") and os.path.isfile(args.saved):  # a case: build its model, report the pairing
+        import warnings
+
+        from cfcontact.case import build_system
+        from cfcontact.errors import PairingWarning
+        from cfcontact.report import format_model_report, model_report
+
+        case = load_case(args.saved)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PairingWarning)  # (the report lists the excluded nodes)
+            system = build_system(case)
+        rep = model_report(system, case["_file"])
+        print(json.dumps(rep, indent=1) if args.json else format_model_report(rep))
+        return EXIT_OK
     src, path = _load_saved(args.saved)
-    rep = path_report(path)
+    rep = path_report(path, _saved_contact_settings(src))
     if args.json:
         print(json.dumps(rep, indent=1))
     else:
@@ -393,8 +432,12 @@ def _setup_export(sub, common):
 
 
 def _setup_info(sub, common):
-    p = sub.add_parser("info", parents=[common], help="transitions, folds, multiplicity, events and stats of a path")
-    p.add_argument("saved", metavar="SAVED_PATH_DIR")
+    p = sub.add_parser("info", parents=[common], help="transitions, folds, multiplicity, events, stats and contact "
+                                                      "pairing of a path; the model and pairing of a case",
+                       description="A saved path: status, transitions, folds, multiplicity, events, statistics and "
+                                   "its contact pairing. A case file (CASE.toml): builds its model and reports its "
+                                   "size and pairing (pairs, excluded nodes, initial gap).")
+    p.add_argument("saved", metavar="SAVED_PATH_DIR|CASE.toml")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_info)
 

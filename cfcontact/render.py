@@ -480,7 +480,7 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
     magnification : displacement scale; default :func:`auto_magnification` (largest
         displacement = 10 % of the model size)
     window_size : (width, height) in pixels of the PNG
-    stress : optional per-cell values, e.g. ``cfcontact.fields.von_mises(geometry, solution.u)``;
+    stress : optional per-cell values, e.g. ``cfcontact.fields.von_mises(geometry, solution)``;
         cells are then coloured by it with a scalar bar.  ``show_stress=True`` without ``stress``
         is an error (this module does not compute stresses).
     title : text at the top; the lower-left corner shows α and the magnification.
@@ -635,7 +635,7 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
         anything else -> a directory of numbered PNGs ``frame_0000.png``...
         Fallback frames go to ``<stem>_frames/`` next to ``filename``.
     stress : optional callable ``stress(solution)`` -> one value per cell (e.g. ``lambda s:
-        cfcontact.fields.von_mises(path.geometry, s.u)``); the cells are then coloured by it, on one
+        cfcontact.fields.von_mises(path.geometry, s)``: at its alpha); the cells are then coloured by it, on one
         colour scale for all frames, with a scalar bar.
     The magnification and the camera are the same in every frame.  Returns an :class:`AnimationResult`.
     """

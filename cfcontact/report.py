@@ -3,10 +3,15 @@ worst residual of its stored points (the demo's and the benchmark's check).
 
 :func:`path_report` gathers status, transitions, folds, the multiplicity over alpha
 (:meth:`~cfcontact.solution_path.SolutionPath.multiplicity_intervals`), events, solver
-statistics and options as strict JSON data; :func:`format_report` renders it as text.
+statistics, options and the contact pairing (:func:`contact_report`) as strict JSON data;
+:func:`format_report` renders it as text.  :func:`model_report` / :func:`format_model_report`
+describe a built model (``cfcontact info CASE.toml``): its size and its pairing as the assembly
+recorded it (``ContactSystem.info["contact"]``).
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from cfcontact.jsonio import jsonable
 from cfcontact.ssnm import verify
@@ -22,9 +27,114 @@ def worst_residual(system, path, solver=None, batch=128, indices=None, points=No
     return max((verify(system, y, alpha, solver=solver).worst() for alpha, y in points), default=0.0)
 
 
-def path_report(path) -> dict:
-    """Everything ``info`` shows, as a JSON-able dict (non-finite numbers as None)."""
+# ------------------------------------------------------------------ contact pairing
+def _range(values):
+    values = np.asarray(values, dtype=float)
+    return [float(values.min()), float(values.max())] if values.size else [0.0, 0.0]
+
+
+def contact_report(path=None, *, system=None, declared=None) -> dict:
+    """How the contact pairs of a model or a saved path were formed, as JSON data: ``pairing``,
+    ``slave``, ``master``, ``pairs``, ``excluded`` (with ``excluded_reasons``),
+    ``dropped_prescribed``, ``search_distance``, ``obstacle``, ``gap_range``, ``no_tangent`` (pairs
+    without tangential unknown) and ``source``.
+
+    From a ContactSystem (``system``): everything, as its assembly recorded it.  From a saved
+    path: what the path holds -- the pairs, the slave side (body 1 or 2), the master (a body, an
+    obstacle, a rigid foundation), the pairs without tangential unknown, the gap when the path
+    stores one -- completed by ``declared`` (the pairing, slave and search distance its case
+    file asked for); what neither tells is None (the excluded nodes are not stored with a path)."""
+    if system is not None:
+        info = system.info.get("contact", {})
+        rigid = bool(system.info.get("rigid_foundation"))
+        slave = info.get("slave")
+        master = ("obstacle" if info.get("obstacle") else "rigid foundation" if rigid else
+                  {"contact1=10": "contact2=20", "contact2=20": "contact1=10"}.get(slave))
+        return {"source": "model", "pairing": info.get("pairing"), "slave": slave, "master": master,
+                "pairs": system.m, "excluded": info.get("excluded"), "excluded_reasons": info.get("excluded_reasons"),
+                "dropped_prescribed": info.get("dropped_prescribed"), "search_distance": info.get("search_distance"),
+                "obstacle": info.get("obstacle"), "gap_range": _range(system.gap),
+                "no_tangent": int(np.count_nonzero(system.no_tangent))}
+    declared = declared or {}
+    geo = path.geometry
+    nodes = np.asarray(geo.contact_nodes, dtype=np.int64).reshape(-1, 2)
+    points = np.asarray(geo.points, dtype=float)[:, :2]
+    cpts = np.asarray(geo.contact_points, dtype=float).reshape(-1, 2)
+    body2_slave = bool(len(nodes)) and np.all(nodes[:, 1] >= 0) and np.array_equal(cpts, points[nodes[:, 1]]) \
+        and not np.array_equal(cpts, points[nodes[:, 0]])
+    obstacle = getattr(geo, "obstacle", None)
+    master = ("obstacle" if obstacle else "rigid foundation" if len(nodes) and np.all(nodes[:, 1] < 0) else
+              "contact1=10" if body2_slave else "contact2=20")
+    # node-to-segment rows couple a slave node with two master nodes
+    N = path.N.tocoo()
+    row_node = np.unique(np.column_stack([N.row, np.asarray(geo.dof_node)[N.col]]).reshape(-1, 2), axis=0)
+    per_row = np.bincount(row_node[:, 0], minlength=path.m)
+    pairing = declared.get("pairing") or ("segment" if np.any(per_row > 2) or obstacle else None)
+    gap = getattr(path, "gap", None)
+    no_tangent = np.diff(path.T.tocsr().indptr) == 0
+    return {"source": "saved path", "pairing": pairing,
+            "slave": declared.get("slave") or ("contact2=20" if body2_slave else "contact1=10"), "master": master,
+            "pairs": path.m, "excluded": None, "excluded_reasons": None, "dropped_prescribed": None,
+            "search_distance": declared.get("search_distance"), "obstacle": obstacle,
+            "gap_range": None if gap is None else _range(gap), "no_tangent": int(np.count_nonzero(no_tangent))}
+
+
+#: why a slave node was left out (cfcontact.pairing.Pairing.excluded_reason)
+_EXCLUDED = {"miss": "whose normal misses the master", "back": "whose normal meets only the master's back",
+             "distance": "beyond the search distance"}
+
+
+def contact_lines(c) -> list:
+    """The text lines of a :func:`contact_report`."""
+    def num(v):
+        return "none" if v is None else f"{v:.6g}"
+
+    master = c["master"] if c["master"] != "obstacle" else f"obstacle {c['obstacle']}"
+    lines = [f"contact: {c['pairs']} pairs, {c['pairing'] or 'unrecorded'} pairing, slave {c['slave']}, "
+             f"master {master}"]
+    if c["excluded"] is None:
+        lines.append("  excluded nodes: not stored with a saved path (cfcontact info CASE.toml lists them); "
+                     f"search distance {num(c['search_distance'])}")
+    else:
+        why = ", ".join(f"{v} {_EXCLUDED.get(k, k)}" for k, v in sorted((c["excluded_reasons"] or {}).items()))
+        lines.append(f"  excluded nodes: {c['excluded']}" + (f" ({why})" if why else "")
+                     + f"; search distance {num(c['search_distance'])}"
+                     + (f"; {c['dropped_prescribed']} pair(s) dropped (every DOF prescribed)"
+                        if c.get("dropped_prescribed") else ""))
+    if c["gap_range"] is None:
+        lines.append("  initial gap: not stored with a saved path yet (cfcontact info CASE.toml computes it)")
+    else:
+        lines.append(f"  initial gap: {c['gap_range'][0]:.6g} .. {c['gap_range'][1]:.6g}")
+    if c["no_tangent"]:
+        lines.append(f"  {c['no_tangent']} pair(s) without tangential unknown (tangential DOFs prescribed)")
+    return lines
+
+
+def model_report(system, source=None) -> dict:
+    """The size and the contact pairing of a built model (``cfcontact info CASE.toml``), JSON data."""
+    info = system.info
+    return jsonable({"source": source, "model": info.get("model"), "n": system.n, "m": system.m,
+                     "num_nodes": info.get("num_nodes"), "num_cells": info.get("num_cells"),
+                     "cell_type": info.get("cell_type"), "dirichlet": info.get("dirichlet"),
+                     "contact": contact_report(system=system)})
+
+
+def format_model_report(rep) -> str:
+    lines = [f"case: {rep['source']}",
+             f"model {rep['model']}: n = {rep['n']} DOFs, m = {rep['m']} contact pairs, {rep['num_nodes']} nodes, "
+             f"{rep['num_cells']} cells ({rep['cell_type']})"]
+    if rep.get("dirichlet"):
+        lines.append("prescribed: " + "; ".join(f"{piece} " + ", ".join(f"u_{c} {v[0]:g} -> {v[1]:g}" for c, v in
+                                                                          comps.items())
+                                                 for piece, comps in rep["dirichlet"].items()))
+    return "\n".join(lines + contact_lines(rep["contact"]))
+
+
+def path_report(path, declared=None) -> dict:
+    """Everything ``info`` shows, as a JSON-able dict (non-finite numbers as None); ``declared``:
+    see :func:`contact_report`."""
     mult, at = path.max_multiplicity()
+    contact = None if getattr(path, "geometry", None) is None else contact_report(path, declared=declared)
     return jsonable({
         "method": path.method, "status": path.status, "n": path.n, "m": path.m,
         "alpha_start": path.alpha_start, "alpha_end": path.alpha_end,
@@ -34,6 +144,7 @@ def path_report(path) -> dict:
         "multiplicity": [{"alpha_lo": a, "alpha_hi": b, "solutions": k} for a, b, k in path.multiplicity_intervals()],
         "max_multiplicity": mult, "alpha_of_max": at,
         "events": [e.to_dict() for e in path.events], "stats": path.stats, "options": path.options,
+        "contact": contact,
     })
 
 
@@ -71,4 +182,6 @@ def format_report(rep, source) -> str:
     if st:
         parts = [f"{k} {v:.3g} s" if k.endswith("time") else f"{k} {v}" for k, v in st.items()]
         lines.append("stats: " + ", ".join(parts))
+    if rep.get("contact"):
+        lines += contact_lines(rep["contact"])
     return "\n".join(lines)

@@ -260,7 +260,7 @@ def _write_pictures(path, case, outdir, warn) -> list:
         if out["stress"]:
             from cfcontact import fields
 
-            stresses = [fields.von_mises(path.geometry, s.u) for s in sols]
+            stresses = [fields.von_mises(path.geometry, s) for s in sols]  # (at its alpha: prescribed u)
         render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
                             window_size=None if ws is None else tuple(ws), stresses=stresses)
         files.append("panel.png")
@@ -274,7 +274,7 @@ def _write_pictures(path, case, outdir, warn) -> list:
             from cfcontact import fields
 
             def stress(sol):
-                return fields.von_mises(path.geometry, sol.u)
+                return fields.von_mises(path.geometry, sol)
 
         res = render.render_animation(path, os.path.join(outdir, name), frames=out["animation_frames"],
                                       magnification=mag, window_size=(960, 640) if ws is None else tuple(ws),

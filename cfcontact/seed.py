@@ -23,7 +23,8 @@ import numpy as np
 from cfcontact.options import AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point
-from cfcontact.start import branch_endpoints, resume_parts, start_point
+from cfcontact.start import (branch_endpoints, consistent_up_to_ties, indicator_ties, oriented_start, resume_parts,
+                             start_point)
 from cfcontact.stepper import Stepper
 
 log = logging.getLogger(__name__)
@@ -47,6 +48,7 @@ class SeedStepper(Stepper):
             self._start_clock()
             self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
             start = start_point(system, span.start, y0, options, self.solver)
+            start = oriented_start(system, start, span, options, self.solver)  # a degenerate start: its sets
             self.Z, self.s, self.alpha, self.y = start.sets, span.direction, span.start, start.y
             self.branch = self.path.add_branch(self.Z, self.s, *branch_endpoints(system, self.solver, self.Z),
                                                alpha_enter=self.alpha)
@@ -123,7 +125,9 @@ class SeedStepper(Stepper):
                 clipped = True
             step = abs(a_new - alpha)
             y_pred = solver.solve(Z, (1.0 - a_new) * f1 + a_new * f2) if step > 0 else self.y
-            if step > 0 and is_fixed_point(system, y_pred, Z):
+            # (at the end of the span the branch may end on a tie: a zero load there, say)
+            if step > 0 and (is_fixed_point(system, y_pred, Z)
+                             or clipped and consistent_up_to_ties(system, y_pred, Z)):
                 self.alpha, self.y = a_new, y_pred
                 idx = path.add_point(self.branch, a_new, y_pred)
                 self.h = min(opts.c_p * h, opts.h_max)
@@ -185,22 +189,35 @@ def _ranked_toggles(system, y, sets, limit=8):
     """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``.
 
     Toggles that cannot change DirNeu's solution (the tangential set of an open node, or of a
-    node with F = 0 between I_t^+ and I_t^-) are skipped.  Returns [(value, node, kind, Z_new)].
+    node with F = 0 between I_t^+ and I_t^-) are skipped, and so are the tangential toggles of
+    a node without tangential unknown (``system.no_tangent``: its lam_t enters no equation).
+    Returns [(value, node, kind, Z_new)].
     """
     a, bp, bm = indicators(system, y)
-    if np.any(sets.nu):
+    no_tangent = system.no_tangent
+    free = sets.nu & ~no_tangent
+    if np.any(free):
         # The tangential sets of an open node do not change DirNeu's solution, so they go stale
         # along a branch (T u may change sign).  Refresh them from y, so that closing the node
-        # (toggling I_nu) starts it slipping in the direction of its current T u.
-        tm = np.where(sets.nu, bm < 0, sets.tm)
-        sets = InactiveSets(sets.nu, np.where(sets.nu, ~tm, sets.tp), tm)
+        # (toggling I_nu) starts it slipping in the direction of its current T u.  (A node
+        # without tangential unknown sticks in every consistent set: lam_t = 0 = T u.)
+        tm = np.where(free, bm < 0, sets.tm)
+        sets = InactiveSets(sets.nu, np.where(free, ~tm, sets.tp), tm)
+    _, tp_tie, tm_tie = indicator_ties(system, y)
     vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])
     out = []
     for k in np.argsort(vals, kind="stable"):
         kind, i = SET_NAMES[k // system.m], int(k % system.m)
+        if kind != "nu" and (no_tangent[i] or sets.nu[i]):
+            continue
         new = toggle(sets, i, kind)
         if not new.equivalent(sets, system.friction):
             out.append((float(vals[k]), i, kind, new))
+            if kind == "nu" and sets.nu[i] and (tp_tie[i] or tm_tie[i]):
+                # closing a node whose T u vanishes (e.g. a rigid approach): no slip direction is
+                # decided, so sticking is a candidate too
+                other = np.arange(system.m) != i
+                out.append((float(vals[k]), i, kind, InactiveSets(new.nu, new.tp & other, new.tm & other)))
             if len(out) >= limit:
                 break
     return out

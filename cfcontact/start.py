@@ -5,13 +5,14 @@ argument.  Shared by the seed and exact methods."""
 from __future__ import annotations
 
 import logging
-
 from typing import Optional
 
+import numpy as np
+
 from cfcontact.errors import ConvergenceError, InputError
-from cfcontact.options import AlphaSpan, PathOptions
+from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SolutionPath
-from cfcontact.ssnm import InactiveSets, Solution, get_solver, ssnm
+from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point, ssnm
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -66,6 +67,79 @@ def start_point(system, alpha, y0, opts, solver) -> Solution:
         except ConvergenceError:
             continue
     raise failure
+
+
+def indicator_ties(system, y, rtol=TIE_RTOL):
+    """(a, bp, bm): (m,) bool arrays of the indicators of :func:`cfcontact.ssnm.indicators` that
+    vanish at y, within ``rtol`` of the scale of y's multipliers and of rho times its relative
+    displacements (as in :func:`cfcontact.ssnm.verify`).  There the sets Z(y) are not decided by
+    y: at y = 0 (a zero load) every tangential indicator vanishes, and so does the normal one of a
+    node at zero gap.  Nodes without a tangential unknown (``system.no_tangent``) have no
+    tangential ties."""
+    n = system.n
+    y = np.asarray(y, dtype=float)
+    N, T = system.contact_maps()
+    u = y[:n]
+    scale = max(np.abs(y[n:]).max(initial=0.0), system.rho * np.abs(N @ u - system.gap).max(initial=0.0),
+                system.rho * np.abs(T @ u).max(initial=0.0))
+    tie = rtol * scale
+    a, bp, bm = (np.abs(v) <= tie for v in indicators(system, y))
+    return a, bp & ~system.no_tangent, bm & ~system.no_tangent
+
+
+def consistent_up_to_ties(system, y, sets, rtol=TIE_RTOL) -> bool:
+    """Whether ``sets`` are Z(y) where y decides them: an indicator that vanishes at y (see
+    :func:`indicator_ties`) may take either side.  With y = DirNeu(sets, f(alpha)) this is the
+    closure of "the branch of ``sets`` is consistent at alpha"."""
+    ties = indicator_ties(system, y, rtol)
+    sides = (np.where(sets.nu, -1.0, 1.0), np.where(sets.tp, 1.0, -1.0), np.where(sets.tm, -1.0, 1.0))
+    a, bp, bm = (np.where(t, side, v) for t, side, v in zip(ties, sides, indicators(system, y)))
+    return InactiveSets(a < 0, bp > 0, bm < 0).equivalent(sets, system.friction)
+
+
+def oriented_start(system, start: Solution, span: AlphaSpan, opts: PathOptions, solver) -> Solution:
+    """The start point with the inactive sets of the branch that leaves it towards ``span.end``.
+
+    SSNM's sets at the start are Z(y_start).  Where an indicator vanishes at y_start (a
+    degenerate start, :func:`indicator_ties`: typically y = 0 at a zero load, where every state of
+    a node at zero gap is consistent and the tangential sets of every node are undecided), Z(y_start)
+    need not be the sets of any branch through the start, and the predictor-corrector would
+    fail at every step size.  The sets are then decided by the load direction: for h = h0,
+    c_s h0, ... down to h_min, the candidates Z(y_start) and the sets of SSNM's solution at
+    alpha_start + s h are tried, and the first Z whose DirNeu(Z, f) is a solution at alpha_start +
+    s h (a fixed point), passes through the start point and is consistent there up to the ties
+    (:func:`consistent_up_to_ties`) is taken: its branch is affine, so it is consistent on the
+    whole step [alpha_start, alpha_start + s h].  A non-degenerate start is returned unchanged
+    (its sets are consistent on a neighbourhood), as is a degenerate one where no candidate
+    qualifies (the stepper's branching algorithm then takes over)."""
+    if not any(t.any() for t in indicator_ties(system, start.y)):
+        return start
+    s, alpha0 = span.direction, span.start
+    y0 = start.y
+    f1, f2 = system.loads_numpy()
+    load = lambda a: (1.0 - a) * f1 + a * f2  # noqa: E731
+    h = opts.h0
+    while True:
+        a1 = min(max(alpha0 + s * h, span.lo), span.hi)
+        candidates = [start.sets]
+        try:
+            candidates.append(ssnm(system, a1, y0=y0, tol=opts.tol, max_iter=opts.max_iter, solver=solver).sets)
+        except ConvergenceError:
+            pass
+        for Z in candidates:
+            y1 = solver.solve(Z, load(a1))
+            if not is_fixed_point(system, y1, Z):
+                continue
+            y_at = solver.solve(Z, load(alpha0))
+            if np.linalg.norm(y_at - y0) <= 1e-8 * max(np.linalg.norm(y1), np.linalg.norm(y0), 1e-300) \
+                    and consistent_up_to_ties(system, y_at, Z):
+                if Z is not start.sets:
+                    log.info("degenerate start at alpha=%g: the sets of the branch towards alpha=%g taken "
+                             "(h = %g)", alpha0, span.end, h)
+                return Solution.from_y(system, y_at, alpha0, sets=Z, iterations=start.iterations)
+        if h <= opts.h_min:
+            return start
+        h = max(opts.c_s * h, opts.h_min)
 
 
 def branch_endpoints(system, solver, sets):

@@ -17,14 +17,15 @@ foundation         foundation.toml             one block on a rigid foundation
 arc                arc.toml                    convex arc bottom in a matching concave seat
 inclined           inclined.toml               the two blocks rotated by 20 degrees
 user_msh           user_msh.toml               a user's .msh (written here by cfcontact.meshes.two_blocks)
-cylinder           (Python: BUILDERS)          a half-cylinder pressed on a block (Hertz), initial gap
-punch              (Python: BUILDERS)          a flat punch with rounded edges on a block
-nonmatching        (Python: BUILDERS)          two blocks with 12 and 17 cells along the interface
-obstacle           (Python: BUILDERS)          a block pressed on a rigid disc (an analytic obstacle)
+cylinder           cylinder.toml               a half-cylinder pressed on a block (Hertz), initial gap
+punch              punch.toml                  a flat punch with rounded edges on a block
+nonmatching        nonmatching.toml            two blocks with 12 and 17 cells along the interface
+obstacle           obstacle.toml               a block pressed on a rigid disc (an analytic obstacle)
+half_cylinder      half_cylinder.toml          the right half of the cylinder, a symmetry plane
 =================  ==========================  ==============================================
 
-The last four have no case file yet (the ``[contact]`` table of case files is still to come):
-their models are built by :data:`BUILDERS` with the Python API.
+The picture's magnification is the case's ``[output] magnification`` (a rigid obstacle is drawn
+as it is: obstacle.toml sets 1), else automatic.
 """
 
 from __future__ import annotations
@@ -46,34 +47,12 @@ VARIANTS = {
     "arc": ("arc.toml", 0.5, "arc in a seat"),
     "inclined": ("inclined.toml", 0.5, "inclined"),
     "user_msh": ("user_msh.toml", 0.5, "user .msh"),
+    "cylinder": ("cylinder.toml", 1.0, "cylinder on block"),
+    "punch": ("punch.toml", 1.0, "rounded punch"),
+    "nonmatching": ("nonmatching.toml", 0.5, "non-matching blocks"),
+    "obstacle": ("obstacle.toml", 1.0, "block on a rigid disc"),
+    "half_cylinder": ("half_cylinder.toml", 1.0, "half cylinder (symmetry plane)"),
 }
-
-
-#: the variants built with the Python API (see :func:`_builders`)
-BUILT = ("cylinder", "punch", "nonmatching", "obstacle")
-
-
-def _builders():
-    """variant -> (model factory, alpha, title[, magnification]) of the variants built with the Python
-    API (a rigid obstacle is drawn undeformed: its picture is not magnified)."""
-    import cfcontact
-
-    steel = dict(E=2.1e11, nu=0.3)
-    return {
-        "cylinder": (lambda: cfcontact.cylinder_on_block(
-            radius=1.0, width=3.0, depth=1.5, zone=0.3, size=0.025, size_far=0.3, friction=0.3,
-            indentation=(0.0, 0.04), **steel), 1.0, "cylinder on block"),
-        "punch": (lambda: cfcontact.rounded_punch(
-            half_width=0.5, edge_radius=0.15, width=2.5, depth=1.0, size=0.035, size_far=0.3, friction=0.3,
-            indentation=(0.0, 0.01), **steel), 1.0, "rounded punch"),
-        "nonmatching": (lambda: cfcontact.two_blocks(
-            nx=12, ny=4, nx2=17, ny2=5, pairing="segment", slave="contact1", friction=0.3,
-            tractions1={"top1": (2e7, -1e8)}, tractions2={"top1": (1e8, -2e7)}), 0.5, "non-matching blocks"),
-        "obstacle": (lambda: cfcontact.two_blocks(
-            nx=40, ny=6, length=2.0, height=0.5, foundation=True, clamp=(), friction=0.3, tractions1={},
-            tractions2={}, search_distance=0.2, dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.03)}},
-            obstacle={"kind": "circle", "center": (1.0, -1.0001), "radius": 1.0}), 1.0, "block on a rigid disc", 1.0),
-    }
 
 
 def _user_msh(case_file, workdir):
@@ -86,36 +65,27 @@ def _user_msh(case_file, workdir):
 
 
 def picture(variant, output, window_size=(600, 360), log=print):
-    """Solve one point of the variant's case (or model) and render it to ``<output>/<variant>.png``."""
+    """Solve one point of the variant's case and render it to ``<output>/<variant>.png``."""
     import warnings
 
     import cfcontact
     from cfcontact import render
+    from cfcontact.case import build_system, load_case
 
-    magnification = None
-    if variant in VARIANTS:
-        from cfcontact.case import build_system, load_case
-
-        case_name, alpha, title = VARIANTS[variant]
-        case_file = os.path.join(CASES, case_name)
-        with tempfile.TemporaryDirectory() as tmp:
-            if variant == "user_msh":
-                case_file = _user_msh(case_file, tmp)
-            case = load_case(case_file)
-            system = build_system(case)
-        friction = _friction(case)
-    else:
-        factory, alpha, title, *mag = _builders()[variant]
-        magnification = mag[0] if mag else None
+    case_name, alpha, title = VARIANTS[variant]
+    case_file = os.path.join(CASES, case_name)
+    with tempfile.TemporaryDirectory() as tmp:
+        if variant == "user_msh":
+            case_file = _user_msh(case_file, tmp)
+        case = load_case(case_file)
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", cfcontact.PairingWarning)
-            system = factory()
-        friction = f"{system.friction:g}"
+            warnings.simplefilter("ignore", cfcontact.PairingWarning)  # (obstacle.toml's search distance)
+            system = build_system(case)
     sol = _solve(system, alpha)
     os.makedirs(output, exist_ok=True)
     fn = os.path.join(output, f"{variant}.png")
-    render.render_solution(system.geometry, sol, fn, window_size=tuple(window_size), title=f"{title}, F = {friction}",
-                           magnification=magnification)
+    render.render_solution(system.geometry, sol, fn, window_size=tuple(window_size),
+                           title=f"{title}, F = {_friction(case)}", magnification=case["output"].get("magnification"))
     counts = render.state_counts(sol.states())
     log(f"{fn}: n = {system.n}, m = {system.m}, alpha = {alpha}, "
         + ", ".join(f"{k} {v}" for k, v in counts.items() if v) + f", {os.path.getsize(fn) // 1024} kB")
@@ -142,12 +112,12 @@ def _friction(case):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--variant", action="append", choices=sorted(VARIANTS) + sorted(BUILT),
+    ap.add_argument("--variant", action="append", choices=sorted(VARIANTS),
                     help="variant to draw (repeatable; default: all)")
     ap.add_argument("-o", "--output", default=os.path.join(ROOT, "docs", "img"), help="folder of the PNGs")
     ap.add_argument("--window-size", type=int, nargs=2, default=(600, 360), metavar=("W", "H"))
     args = ap.parse_args(argv)
-    for variant in args.variant or list(VARIANTS) + list(BUILT):
+    for variant in args.variant or list(VARIANTS):
         picture(variant, args.output, args.window_size)
     return 0
 

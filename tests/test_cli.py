@@ -119,6 +119,29 @@ def test_example_cases_run(cases, name):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name,slave,transitions", [("cylinder", "contact2=20", 12), ("punch", "contact2=20", 1),
+                                                     ("nonmatching", "contact1=10", 7), ("obstacle", "contact1=10", 6),
+                                                     ("half_cylinder", "contact2=20", 12)])
+def test_example_contact_geometry_cases_run(cases, name, slave, transitions):
+    """The example cases of the contact geometry run to the end without events (half_cylinder: the
+    seed method from the zero load, as many transitions as the full cylinder)."""
+    import warnings
+
+    case = str(cases / f"{name}.toml")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cli.main(["run", case, "-q"]) == 0
+    left_out = [w for w in caught if issubclass(w.category, cfcontact.PairingWarning)]
+    assert len(left_out) == (name == "obstacle")  # nodes beyond obstacle.toml's search distance
+    out = cases / f"{name}_out"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and not summary["events"]
+    assert len(summary["transitions"]) == transitions
+    assert summary["contact"]["pairing"] == "segment" and summary["contact"]["slave"] == slave
+    _assert_picture(str(out / "panel.png"), (800, 500))
+
+
+@pytest.mark.slow
 def test_example_case_via_python_m(cases):
     """python -m cfcontact run, in a subprocess (the foundation example)."""
     case = str(cases / "foundation.toml")
@@ -200,6 +223,18 @@ BAD = [
      ["[loads] f1.top1[0].x", "lo < hi"]),
     ("unclamped body", '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[loads]\nclamp = ["left1"]\n',
      ["body 2", "Dirichlet"]),
+    # [contact] pairing keys and [loads.dirichlet] (issue #12): checked before the model is built ...
+    ("search distance zero", '[geometry]\nkind = "two_blocks"\n[contact]\npairing = "segment"\nsearch_distance = 0\n',
+     ["[contact] search_distance", "> 0"]),
+    ("slave not a contact boundary", '[geometry]\nkind = "two_blocks"\n[contact]\npairing = "segment"\n'
+     'slave = "left2"\n', ["[contact] slave", "contact1=10 or contact2=20", "left2"]),
+    # ... or while it is built (what only the mesh tells), still exit 2 with the key named
+    ("obstacle not facing", '[geometry]\nkind = "block_on_foundation"\nnx = 6\nny = 2\n[contact.obstacle]\n'
+     'kind = "circle"\ncenter = [1.5, 3.0]\nradius = 0.5\n', ["[contact.obstacle]", "does not face contact1"]),
+    ("non-matching with node pairing", '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\nnx2 = 7\n',
+     ["[contact] pairing", "non-matching", 'pairing = "segment" in [contact]']),
+    ("prescribed on a contact node", '[geometry]\nkind = "two_blocks"\nnx = 6\nny = 2\n[loads.dirichlet]\n'
+     'right1 = {y = [0.0, 1.0e-3]}\n', ["[loads.dirichlet]", "non-zero prescribed displacement", "(3, 0)"]),
 ]
 
 
@@ -542,3 +577,147 @@ def test_seed_periodic_checkpoints_do_not_restart_the_run(tmp_path, monkeypatch)
     assert cli.main(["run", case, "-q", "--checkpoint-every", "0.02"]) == 0
     assert made == [1] and saves and set(saves) == {"checkpoint"}
     assert SolutionPath.load(str(tmp_path / "case_out" / "path")).status == "completed"
+
+
+# ------------------------------------------------------------------ real contact geometry (issue #12)
+HALF_CYLINDER = """
+[geometry]
+kind = "cylinder"
+width = 3.0
+depth = 1.5
+size = 0.05
+size_far = 0.5
+half = true
+[material]
+E = 1.0
+[contact]
+friction = 0.3
+[loads.dirichlet]
+top1 = {x = 0.0, y = [0.0, -0.03]}
+sym1 = {x = 0.0}
+sym2 = {x = 0.0}
+[path]
+method = "exact"
+[output]
+plot = false
+render_panel = false
+"""
+
+
+def test_info_of_a_case_reports_its_pairing(tmp_path, capsys):
+    """cfcontact info CASE.toml builds the model and reports the pairing the assembly recorded."""
+    case = _write(tmp_path, open(os.path.join(CASES, "obstacle.toml")).read().replace("nx = 40", "nx = 20"))
+    assert cli.main(["info", case]) == 0
+    text = capsys.readouterr().out
+    with pytest.warns(cfcontact.PairingWarning, match="left out"):
+        system = case_file.build_system(case_file.load_case(case))
+    c = system.info["contact"]
+    for w in (f"m = {system.m} contact pairs", f"contact: {system.m} pairs, segment pairing, slave contact1=10, "
+              "master obstacle", f"excluded nodes: {c['excluded']} ({c['excluded']} beyond the search distance); "
+              "search distance 0.2", f"initial gap: {c['gap_range'][0]:.6g} .. {c['gap_range'][1]:.6g}",
+              "top1=12 u_x 0 -> 0, u_y 0 -> -0.03"):
+        assert w in text, (w, text)
+    assert cli.main(["info", case, "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)["contact"]
+    assert rep["excluded"] == c["excluded"] > 0 and rep["gap_range"] == c["gap_range"] and rep["source"] == "model"
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # info writes nothing
+    bad = _write(tmp_path, "[geometry]\nkind = \"two_blocks\"\n[contact]\npairing = \"edge\"\n", "bad.toml")
+    assert cli.main(["info", bad]) == 2 and "[contact] pairing" in capsys.readouterr().err
+
+
+def test_info_of_a_saved_path_reports_its_pairing(tmp_path, capsys):
+    """A run's path: the pairing from the path (pairs, slave side, master, pairs without tangential
+    unknown) and its case.toml (pairing, slave, search distance); the excluded nodes and the gap are
+    not stored with a path (yet), and info says so.  summary.json has the same from the path alone.
+    (The half model's exact path: backend "auto" takes the full backend for its centre node.)"""
+    case = _write(tmp_path, HALF_CYLINDER)
+    assert cli.main(["run", case, "-q"]) == 0
+    out = tmp_path / "case_out"
+    assert cli.main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    path = SolutionPath.load(str(out / "path"))
+    for w in (f"contact: {path.m} pairs, segment pairing, slave contact2=20, master contact1=10",
+              "excluded nodes: not stored with a saved path", "search distance none",
+              "initial gap: not stored with a saved path yet", "1 pair(s) without tangential unknown"):
+        assert w in text, (w, text)
+    summary = json.loads((out / "summary.json").read_text())["contact"]
+    assert summary["pairing"] == "segment" and summary["slave"] == "contact2=20" and summary["no_tangent"] == 1
+    from cfcontact.report import contact_report
+
+    path.gap = np.linspace(0.0, 0.05, path.m)  # a path that stores its gap (to come): its range is reported
+    assert contact_report(path)["gap_range"] == [0.0, 0.05]
+    # a path saved by the library (no case.toml next to it): what the path tells
+    path.save(tmp_path / "lib")
+    assert cli.main(["info", str(tmp_path / "lib"), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)["contact"]
+    assert (rep["pairing"], rep["slave"], rep["master"], rep["search_distance"]) == ("segment", "contact2=20",
+                                                                                      "contact1=10", None)
+
+
+def test_info_of_a_two_block_run_reports_node_pairing(small_run, capsys):
+    _, out = small_run
+    assert cli.main(["info", out]) == 0
+    assert "contact: 12 pairs, node pairing, slave contact1=10, master contact2=20" in capsys.readouterr().out
+
+
+PRESCRIBED = """
+[geometry]
+kind = "two_blocks"
+nx = 6
+ny = 2
+[contact]
+friction = 0.3
+[loads]
+clamp = ["left2"]
+[loads.f1]
+right1 = [-1.0e7, 0.0]
+[loads.f2]
+right1 = [-1.0e7, 0.0]
+[loads.dirichlet]
+top1 = {x = [0.0, 2.0e-4], y = [-1.0e-4, -2.0e-4]}
+[output]
+plot = false
+stress = true
+render_animation = true
+animation_frames = 3
+"""
+
+
+def test_stresses_include_the_prescribed_displacements(tmp_path, monkeypatch, capsys):
+    """run ([output] stress: panel and animation) and render --stress colour the cells by the von
+    Mises stress of each solution at its own alpha: the prescribed displacements enter."""
+    from cfcontact import fields, render
+
+    got = {}
+    monkeypatch.setattr(render, "render_panel", lambda geo, sols, fn, **kw: got.update(panel=(sols, kw["stresses"])))
+    monkeypatch.setattr(render, "render_solution", lambda geo, sol, fn, **kw: got.update(one=(sol, kw["stress"])))
+
+    def animation(path, fn, **kw):
+        got["animation"] = kw["stress"]
+        return render.AnimationResult("gif", str(fn), 3, [], 1.0)
+
+    monkeypatch.setattr(render, "render_animation", animation)
+    case = _write(tmp_path, PRESCRIBED)
+    assert cli.main(["run", case, "-q"]) == 0
+    path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
+    geo = path.geometry
+    assert geo.prescribed is not None
+
+    def check(sol, stress):
+        assert sol.alpha > 0
+        assert np.array_equal(stress, fields.von_mises(geo, sol.u, alpha=sol.alpha))
+        assert np.abs(stress - fields.von_mises(geo, sol.u)).max() > 1e-3 * np.abs(stress).max()
+
+    sols, stresses = got["panel"]
+    for sol, stress in zip(sols, stresses):
+        check(sol, stress)
+    sol = path.solutions_at(0.5)[0]
+    check(sol, got["animation"](sol))
+    assert cli.main(["render", str(tmp_path / "case_out"), "--stress", "--alpha", "0.5", "-o",
+                     str(tmp_path / "r.png"), "-q"]) == 0
+    check(*got["one"])
+    monkeypatch.setattr(render, "render_animation", animation)
+    got.pop("animation")
+    assert cli.main(["render", str(tmp_path / "case_out"), "--stress", "--animation", str(tmp_path / "a.gif"),
+                     "-q"]) == 0
+    check(sol, got["animation"](sol))

@@ -1,5 +1,6 @@
 """Real contact geometry under ``mpirun -n 2`` (issue #12, item 7): the pairing, the gap, the
-prescribed displacements and the solutions (both backends, an exact path) equal the serial ones."""
+prescribed displacements and the solutions (both backends, an exact path) equal the serial ones;
+so does a case file of the new geometry (model, info report, seed path)."""
 
 import os
 import sys
@@ -41,3 +42,30 @@ def test_mpi_geometry_matches_serial(tmp_path, run_mpi):
             assert np.abs(y - yc).max() <= 1e-8 * np.abs(y).max(), name
     assert par["half:no_tangent"][0] == 1 and par["obstacle:gap"].min() > 0
     assert len(par["cylinder:path_alphas"]) >= 1
+
+
+@pytest.mark.mpi
+def test_mpi_case_file_matches_serial(tmp_path, run_mpi):
+    """A new example case (half_cylinder.toml, coarser): its validation, model, `info` report and
+    seed path from the zero load under mpirun -n 2 equal the serial ones."""
+    sys.path.insert(0, HERE)
+    try:
+        import mpi_case_script as script
+    finally:
+        sys.path.remove(HERE)
+    text = open(os.path.join(os.path.dirname(HERE), "demos", "cases", "half_cylinder.toml")).read()
+    case = tmp_path / "half.toml"
+    case.write_text(text.replace("size = 0.025", "size = 0.05").replace("size_far = 0.3", "size_far = 0.5"))
+    out = tmp_path / "mpi.npz"
+    run_mpi(2, os.path.join(HERE, "mpi_case_script.py"), str(case), str(out), timeout=600)
+    par = np.load(out)
+    assert int(par["size"]) == 2 and 0 < par["ranges"][1] < par["ranges"][2]
+    serial = script.result(str(case))
+    assert str(par["report"]) == str(serial["report"]) and '"no_tangent": 1' in str(serial["report"])
+    assert str(par["status"]) == str(serial["status"]) == "completed" and int(par["events"]) == 0
+    assert str(par["changes"]) == str(serial["changes"]) and len(serial["alphas"]) >= 4
+    np.testing.assert_allclose(par["alphas"], serial["alphas"], rtol=0, atol=1e-10)
+    for key in ("K", "N", "T", "f1", "f2", "gap", "y_end"):
+        ref = serial[key]
+        assert par[key].shape == ref.shape, key
+        assert np.abs(par[key] - ref).max(initial=0.0) <= 1e-9 * max(np.abs(ref).max(initial=0.0), 1e-300), key

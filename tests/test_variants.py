@@ -20,7 +20,9 @@ from reference import frictionless_dual
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CASES = os.path.join(ROOT, "demos", "cases")
-VARIANTS = ("two_blocks", "foundation", "arc", "inclined", "user_msh")
+#: the README's pictures (demos/pictures.py: one per example case)
+VARIANTS = ("two_blocks", "foundation", "arc", "inclined", "user_msh", "cylinder", "punch", "nonmatching", "obstacle",
+            "half_cylinder")
 
 
 def _env():
@@ -211,20 +213,27 @@ def test_folds_example_case_has_folds_and_three_solutions(tmp_path, capsys):
 
 # ------------------------------------------------------------------ README pictures
 @pytest.mark.slow
-def test_pictures_script_renders_a_variant(tmp_path):
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", "arc",
+@pytest.mark.parametrize("variant,m", [("arc", 17), ("nonmatching", 12)])
+def test_pictures_script_renders_a_variant(tmp_path, variant, m):
+    """A picture from its case file (nonmatching.toml: node-to-segment pairing, 12 pairs)."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "demos", "pictures.py"), "--variant", variant,
                            "-o", str(tmp_path), "--window-size", "600", "360"],
                           capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=600)
     assert proc.returncode == 0, proc.stderr
-    fn = tmp_path / "arc.png"
+    fn = tmp_path / f"{variant}.png"
     _assert_picture(str(fn), (600, 360))
-    assert fn.stat().st_size < 150_000
-    assert sorted(os.listdir(tmp_path)) == ["arc.png"]
+    assert fn.stat().st_size < 150_000 and f"m = {m}," in proc.stdout
+    assert sorted(os.listdir(tmp_path)) == [f"{variant}.png"]
 
 
 def test_readme_pictures_present_and_small():
+    import runpy
+
     readme = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    pictures = runpy.run_path(os.path.join(ROOT, "demos", "pictures.py"))
+    assert tuple(pictures["VARIANTS"]) == VARIANTS
     for v in VARIANTS:
+        assert os.path.isfile(os.path.join(ROOT, "demos", "cases", pictures["VARIANTS"][v][0]))
         fn = os.path.join(ROOT, "docs", "img", f"{v}.png")
         _assert_picture(fn, (600, 360))
         assert os.path.getsize(fn) < 150_000, fn
