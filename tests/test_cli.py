@@ -627,8 +627,8 @@ def test_info_of_a_case_reports_its_pairing(tmp_path, capsys):
 
 def test_info_of_a_saved_path_reports_its_pairing(tmp_path, capsys):
     """A run's path: the pairing from the path (pairs, slave side, master, pairs without tangential
-    unknown) and its case.toml (pairing, slave, search distance); the excluded nodes and the gap are
-    not stored with a path (yet), and info says so.  summary.json has the same from the path alone.
+    unknown) and its case.toml (pairing, slave, search distance), and the gap the path stores; the
+    excluded nodes are not stored with a path, and info says so.  summary.json has the same from the path alone.
     (The half model's exact path: backend "auto" takes the full backend for its centre node.)"""
     case = _write(tmp_path, HALF_CYLINDER)
     assert cli.main(["run", case, "-q"]) == 0
@@ -638,13 +638,13 @@ def test_info_of_a_saved_path_reports_its_pairing(tmp_path, capsys):
     path = SolutionPath.load(str(out / "path"))
     for w in (f"contact: {path.m} pairs, segment pairing, slave contact2=20, master contact1=10",
               "excluded nodes: not stored with a saved path", "search distance none",
-              "initial gap: not stored with a saved path yet", "1 pair(s) without tangential unknown"):
+              f"initial gap: 0 .. {path.gap.max():.6g}", "1 pair(s) without tangential unknown"):
         assert w in text, (w, text)
     summary = json.loads((out / "summary.json").read_text())["contact"]
     assert summary["pairing"] == "segment" and summary["slave"] == "contact2=20" and summary["no_tangent"] == 1
     from cfcontact.report import contact_report
 
-    path.gap = np.linspace(0.0, 0.05, path.m)  # a path that stores its gap (to come): its range is reported
+    path.gap = np.linspace(0.0, 0.05, path.m)  # the path's gap: its range is reported
     assert contact_report(path)["gap_range"] == [0.0, 0.05]
     # a path saved by the library (no case.toml next to it): what the path tells
     path.save(tmp_path / "lib")
