@@ -1,7 +1,8 @@
 """cfcontact: path following for 2D static contact with Coulomb friction (FEniCSx + PETSc).
 
-Importing cfcontact never imports dolfinx: the FEM layer (:func:`two_blocks`,
-:func:`assemble_contact_system`) is loaded when first used.
+Importing cfcontact loads only its exceptions: every other name (the solver layer with PETSc,
+the FEM layer with dolfinx: :func:`two_blocks`, :func:`assemble_contact_system`) is loaded when
+first used, so ``python -m cfcontact`` reaches its own code (and its Ctrl-C handling) at once.
 """
 
 from cfcontact.errors import (
@@ -10,27 +11,20 @@ from cfcontact.errors import (
     EnumerationTooLarge,
     GeometryError,
     InputError,
+    NotPositiveDefiniteError,
     PairingWarning,
     PathError,
     SingularSystemError,
 )
-from cfcontact.ssnm import (
-    DirNeuSolver,
-    InactiveSets,
-    Solution,
-    SolverOptions,
-    dirneu,
-    get_solver,
-    inactive_sets,
-    is_fixed_point,
-    ssnm,
-    verify,
-)
-from cfcontact.system import ContactGeometry, ContactSystem
 
 __version__ = "0.1.0"
 
 _LAZY = {
+    **{name: ("cfcontact.ssnm", name) for name in (
+        "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver", "inactive_sets",
+        "is_fixed_point", "ssnm", "verify")},
+    "ContactGeometry": ("cfcontact.system", "ContactGeometry"),
+    "ContactSystem": ("cfcontact.system", "ContactSystem"),
     "two_blocks": ("cfcontact.models", "two_blocks"),
     "arc_on_block": ("cfcontact.models", "arc_on_block"),
     "cylinder_on_block": ("cfcontact.models", "cylinder_on_block"),
@@ -58,8 +52,6 @@ def __getattr__(name):
 
 
 __all__ = [
-    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError", "PairingWarning",
-    "PathError",
-    "SingularSystemError", "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver",
-    "inactive_sets", "is_fixed_point", "ssnm", "verify", "ContactGeometry", "ContactSystem", *_LAZY,
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError",
+    "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError", *_LAZY,
 ]

@@ -23,11 +23,14 @@ dofmap_array                ``dofmap.list`` AdjacencyList        2-D array
 from __future__ import annotations
 
 import contextlib
+import inspect
 import logging
 import os
 import re
+import signal
 import sys
 import tempfile
+import threading
 import time
 
 import numpy as np
@@ -307,6 +310,15 @@ def _silenced_stderr():
         os.close(devnull)
 
 
+def python_sigint():
+    """Put Python's Ctrl-C handling back where gmsh removed it.  gmsh 4.8 sets SIGINT to SIG_DFL
+    when it is imported (until ``gmsh.finalize``), later versions in ``gmsh.initialize`` unless
+    ``interruptible=False``: a Ctrl-C would kill the process without a word.  With Python's
+    handler it raises KeyboardInterrupt once gmsh's C code returns (main thread only)."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 @contextlib.contextmanager
 def gmsh_model(name: str = "cfcontact"):
     """Context: a fresh current gmsh model, removed afterwards.
@@ -318,7 +330,11 @@ def gmsh_model(name: str = "cfcontact"):
 
     started = not gmsh_is_initialized()
     if started:
-        gmsh.initialize([], False)
+        if "interruptible" in inspect.signature(gmsh.initialize).parameters:  # gmsh >= 4.9
+            gmsh.initialize([], False, interruptible=False)
+        else:
+            gmsh.initialize([], False)
+        python_sigint()
         gmsh.option.setNumber("General.Terminal", 0)
         previous = None
     else:
