@@ -5,6 +5,9 @@ the FEM layer with dolfinx: :func:`two_blocks`, :func:`assemble_contact_system`)
 first used, so ``python -m cfcontact`` reaches its own code (and its Ctrl-C handling) at once.
 """
 
+import sys
+import types
+
 from cfcontact.errors import (
     CfcontactError,
     ConvergenceError,
@@ -40,6 +43,20 @@ _LAZY = {
     "follow_alternative": ("cfcontact.exact", "follow_alternative"),
     "CondensedSolver": ("cfcontact.condensed", "CondensedSolver"),
 }
+
+
+class _Package(types.ModuleType):
+    """The package object: ``cfcontact.ssnm`` stays the function ``ssnm`` (as it was when this
+    module imported it eagerly), also after the submodule :mod:`cfcontact.ssnm` is imported
+    (the import system then sets the package attribute ``ssnm`` to the module)."""
+
+    def __setattr__(self, name, value):
+        if name == "ssnm" and isinstance(value, types.ModuleType) and hasattr(value, "ssnm"):
+            value = value.ssnm
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name):

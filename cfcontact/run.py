@@ -543,6 +543,7 @@ class CaseRun:
         Raises :class:`Stopped` (after writing the checkpoint) when the runner stops the run."""
         options, span = path_request(self.case)
         p = self.case["path"]
+        system.check_positive_definite()
         solver = select_solver(system, p["method"], p["backend"])
         runner.begin(solver, self.resume["path"] if self.resume else None)
         stepper = path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume)
