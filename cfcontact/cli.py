@@ -226,10 +226,10 @@ def _run_case(args, case, run, stops, t_start):
                 print("cfcontact run: interrupted before the path was traced; nothing to resume (run again to "
                       "start over)", file=sys.stderr, flush=True)
         return EXIT_INTERRUPTED
-    except BaseException:
+    except BaseException as exc:
         with _sigint_ignored():
             progress.done()
-            if run.abandon():
+            if run.abandon() and not isinstance(exc, InputError):  # bad input: its one message says it all
                 print(f"cfcontact: a checkpoint remains in {run.partial} (cfcontact run --resume)", file=sys.stderr)
         raise
     finally:

@@ -30,6 +30,7 @@ import errno
 import fcntl
 import json
 import logging
+import math
 import os
 import shutil
 import socket
@@ -262,7 +263,7 @@ def _write_checkpoint(partial, path, case, reason, resume_state, traced=False):
     path.save(os.path.join(tmp, "path"))
     state = {"format": CHECKPOINT_FORMAT, "version": 1, "reason": reason, "time": time.time(),
              "method": path.method, "resumable": traced or resume_state is not None, "traced": bool(traced),
-             "resume_state": resume_state, "physics": physics(case),
+             "resume_state": resume_state, "physics": physics(case), "system_checksum": path.system_checksum,
              "case_file": case["_file"], "summary": path.summary()}
     write_json(os.path.join(tmp, "state.json"), state)
     old = os.path.join(partial, CHECKPOINT_DIRS[1])
@@ -280,12 +281,58 @@ def load_checkpoint(partial):
     for name in CHECKPOINT_DIRS:
         ck = os.path.join(partial, name)
         if os.path.isfile(os.path.join(ck, "state.json")) and os.path.isdir(os.path.join(ck, "path")):
-            state = read_json(os.path.join(ck, "state.json"))
-            if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
-                raise CaseError(f"{ck}: not a cfcontact checkpoint")
-            return state, SolutionPath.load(os.path.join(ck, "path"))
+            state = _read_state(os.path.join(ck, "state.json"))
+            try:
+                saved = SolutionPath.load(os.path.join(ck, "path"))
+            except InputError as exc:
+                raise CaseError(f"the checkpoint is damaged: {exc}; start over with --force") from None
+            if state["system_checksum"] != saved.system_checksum:
+                raise CaseError(f"{ck}: state.json and path/ belong to different systems (checksums "
+                                f"{str(state['system_checksum'])[:12]}... and {str(saved.system_checksum)[:12]}...); "
+                                f"start over with --force")
+            return state, saved
     raise CaseError(f"nothing to resume: {partial!r} holds no checkpoint (the run was stopped before its first "
                     f"one); start over by running without --resume")
+
+
+def _read_state(fn) -> dict:
+    """state.json of a checkpoint, checked (CaseError naming the file and what is wrong)."""
+    try:
+        state = read_json(fn)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise CaseError(f"{fn}: unreadable or truncated ({exc}); start over with --force") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise CaseError(f"{os.path.dirname(fn)}: not a cfcontact checkpoint")
+    for key, kinds in (("resumable", bool), ("physics", dict), ("method", str)):
+        if not isinstance(state.get(key), kinds):
+            raise CaseError(f"{fn}: key {key!r} is missing or of the wrong type; start over with --force")
+    rs = state.get("resume_state")
+    if state["resumable"] and not state.get("traced") and not isinstance(rs, dict):
+        raise CaseError(f"{fn}: key 'resume_state' is missing or not an object; start over with --force")
+    bad = _non_finite(rs) if rs is not None else None
+    if bad:
+        raise CaseError(f"{fn}: resume_state {bad} is not a finite number; start over with --force")
+    checksum = state.setdefault("system_checksum", None)
+    if checksum is not None and not (isinstance(checksum, str) and len(checksum) == 64):
+        raise CaseError(f"{fn}: system_checksum {checksum!r} is not a SHA-256 digest; start over with --force")
+    return state
+
+
+def _non_finite(value, where=""):
+    """The location of the first non-finite number (or JSON null standing for one) in ``value``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where or "(the value)"
+    if isinstance(value, dict):
+        for k, v in value.items():
+            bad = _non_finite(v, f"{where}.{k}" if where else str(k))
+            if bad:
+                return bad
+    if isinstance(value, list):
+        for i, v in enumerate(value):
+            bad = _non_finite(v, f"{where}[{i}]")
+            if bad:
+                return bad
+    return None
 
 
 def has_checkpoint(partial) -> bool:
@@ -543,6 +590,8 @@ class CaseRun:
         Raises :class:`Stopped` (after writing the checkpoint) when the runner stops the run."""
         options, span = path_request(self.case)
         p = self.case["path"]
+        if self.resume is not None:
+            self.check_system(system)
         system.check_positive_definite()
         solver = select_solver(system, p["method"], p["backend"])
         runner.begin(solver, self.resume["path"] if self.resume else None)
@@ -590,6 +639,14 @@ class CaseRun:
         else:
             os.rename(self.partial, self.out)
         return files
+
+    def check_system(self, system):
+        """CaseError when the resumed checkpoint belongs to another system (its checksum)."""
+        saved = self.resume["path"].system_checksum
+        if saved is not None and saved != system.checksum():
+            raise CaseError(f"the checkpoint in {self.partial!r} belongs to another system (checksum {saved[:12]}..., "
+                            f"this case's model {system.checksum()[:12]}...): it was written by another case or "
+                            f"another cfcontact; start over with --force")
 
     def _traced_checkpoint(self) -> bool:
         try:
