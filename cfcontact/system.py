@@ -191,6 +191,15 @@ class ContactSystem:
                 raise InputError(f"load vector {name} has length {size}, expected n = {n} (the size of K)")
         if n == 0:
             raise InputError("K is empty (0 x 0): the system needs at least one displacement DOF")
+        for name in ("K", "N", "T", "f1", "f2"):
+            finite, big = linalg.local_finite_max(getattr(self, name))
+            what = {"K": "the stiffness K", "N": "the normal map N", "T": "the tangential map T",
+                    "f1": "the load vector f1", "f2": "the load vector f2"}[name]
+            if not finite:
+                raise InputError(f"{what} has non-finite entries (inf or nan){_overflow_hint(name)}")
+            if big > MAGNITUDE_LIMIT:
+                raise InputError(f"{what} has entries up to {big:.3g}, beyond {MAGNITUDE_LIMIT:g}, too close to "
+                                 f"overflow in double precision{_overflow_hint(name)}")
         self.friction = _check_friction(self.friction, m)
         try:
             rho = float(self.rho)
@@ -202,15 +211,6 @@ class ContactSystem:
         self.gap = _check_gap(self.gap, m)
         if np.abs(self.gap).max(initial=0.0) > MAGNITUDE_LIMIT:
             raise InputError(f"the gap reaches {np.abs(self.gap).max():.3g}, beyond {MAGNITUDE_LIMIT:g}: rescale the units")
-        for name in ("K", "N", "T", "f1", "f2"):
-            finite, big = linalg.local_finite_max(getattr(self, name))
-            what = {"K": "the stiffness K", "N": "the normal map N", "T": "the tangential map T",
-                    "f1": "the load vector f1", "f2": "the load vector f2"}[name]
-            if not finite:
-                raise InputError(f"{what} has non-finite entries (inf or nan){_overflow_hint(name)}")
-            if big > MAGNITUDE_LIMIT:
-                raise InputError(f"{what} has entries up to {big:.3g}, beyond {MAGNITUDE_LIMIT:g}, too close to "
-                                 f"overflow in double precision{_overflow_hint(name)}")
         self._cache = {}
 
     # ------------------------------------------------------------------ basics
@@ -283,13 +283,13 @@ class ContactSystem:
         (a sign error, an indefinite matrix) and :class:`~cfcontact.errors.SingularSystemError`
         when it has zero ones (a body without enough Dirichlet conditions); the path methods call
         this before tracing.  Nothing when the inertia is unknown."""
-        count, first = self._diagonal_signs()
-        if count:
-            raise NotPositiveDefiniteError(f"K is not positive definite: {count} diagonal entr"
-                                           f"{'ies are' if count != 1 else 'y is'} <= 0 (the first K[{first}, "
-                                           f"{first}]); a stiffness matrix must be symmetric positive definite on "
-                                           f"the free DOFs")
         if self.n > INERTIA_MAX_DOFS:
+            count, first = self._diagonal_signs()
+            if count:
+                raise NotPositiveDefiniteError(f"K is not positive definite: {count} diagonal entr"
+                                               f"{'ies are' if count != 1 else 'y is'} <= 0 (the first K[{first}, "
+                                               f"{first}]); a stiffness matrix must be symmetric positive definite "
+                                               f"on the free DOFs")
             return
         inertia = self.inertia()
         if inertia is None:
@@ -297,8 +297,9 @@ class ContactSystem:
         neg, zero, pos = inertia
         if neg:
             raise NotPositiveDefiniteError(f"K is not positive definite ({neg} negative eigenvalue"
-                                           f"{'s' if neg != 1 else ''} of {self.n}): a stiffness matrix must be "
-                                           f"symmetric positive definite on the free DOFs", inertia)
+                                           f"{'s' if neg != 1 else ''} of {self.n}, from the inertia of its LDL^T "
+                                           f"factorization): a stiffness matrix must be symmetric positive definite "
+                                           f"on the free DOFs", inertia)
         if zero:
             raise SingularSystemError(f"K is singular (a zero pivot in its Cholesky factorization): a body without "
                                       f"enough Dirichlet conditions (rigid-body motions)?")

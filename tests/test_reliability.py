@@ -72,3 +72,104 @@ def test_fresh_form_cache_prints_only_cfcontact_lines(tmp_path):
     case = _write(tmp_path, TINY + "[loads.f2]\nright1 = [1.0e6, 0.0]\n", "new_tag.toml")
     proc = _cfcontact("run", case, "-q", env=_env(XDG_CACHE_HOME=str(tmp_path / "cache2")))
     assert proc.returncode == 0 and proc.stdout == "" and proc.stderr == "", proc.stderr
+
+
+# ------------------------------------------------------------------ bad case files and flags
+GEO = '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n'
+BAD_RUNS = [
+    # (label, case text, extra flags, words in the one message)
+    ("huge nx", '[geometry]\nkind = "two_blocks"\nnx = 1000000000\n', [], ["[geometry] nx = 1000000000", "DOFs"]),
+    ("too much memory", '[geometry]\nkind = "two_blocks"\nnx = 3000\nny = 1000\n', [],
+     ["[geometry] nx = 3000, ny = 1000", "GiB", "available", "--allow-large"]),
+    ("alpha_end 1e300", GEO + "[path]\nalpha_end = 1e300\n", [], ["alpha_end", "1e+06"]),
+    ("alpha_start -1e7", GEO + "[path]\nalpha_start = -1e7\n", [], ["alpha_start", "1e+06"]),
+    ("E tiny", GEO + "[material]\nE = 1e-300\n", [], ["[material] E", "too small", "units"]),
+    ("E huge", GEO + "[material]\nE = 1e308\n", [], ["[material] E", "too large", "units"]),
+    ("traction 1e308", GEO + "[loads.f1]\ntop1 = [1e308, -1e308]\n", [], ["f1", "overflow", "rescale"]),
+    ("stop-at-alpha nan", GEO, ["--stop-at-alpha", "nan"], ["--stop-at-alpha", "finite", "nan"]),
+    ("stop-at-alpha inf", GEO, ["--stop-at-alpha", "inf"], ["--stop-at-alpha", "inf"]),
+    ("checkpoint-every -5", GEO, ["--checkpoint-every", "-5"], ["--checkpoint-every", ">= 0", "-5"]),
+    ("time-limit 0", GEO, ["--time-limit", "0"], ["--time-limit", "> 0"]),
+    ("stop-after-folds 0", GEO, ["--stop-after-folds", "0"], ["--stop-after-folds", ">= 1"]),
+    ("stop-after-transitions x", GEO, ["--stop-after-transitions", "x"], ["--stop-after-transitions", "'x'"]),
+    ("unknown flag", GEO, ["--frobnicate"], ["--frobnicate"]),
+]
+
+
+@pytest.mark.parametrize("label,text,flags,words", BAD_RUNS, ids=[b[0] for b in BAD_RUNS])
+def test_bad_case_or_flag_exit_2_one_line(tmp_path, capsys, label, text, flags, words):
+    case = _write(tmp_path, text)
+    assert cli.main(["run", case, *flags]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(("cfcontact run: error:", "cfcontact: error:")), lines[0]
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # no output, no .partial, no lock left
+
+
+def test_allow_large_overrides_the_memory_estimate(tmp_path):
+    from cfcontact import case as case_file
+
+    case = case_file.load_case(_write(tmp_path, '[geometry]\nkind = "two_blocks"\nnx = 300\nny = 100\n'))
+    est = case_file.estimate_size(case)
+    assert est["n"] == 4 * 301 * 101 and est["m"] == 301
+    with pytest.raises(case_file.CaseError, match=r"nx = 300, ny = 100.*GiB.*1 GiB"):
+        case_file.check_size(case, available=2.0**30)
+    assert case_file.check_size(case, allow_large=True, available=2.0**30)["n"] == est["n"]
+    assert case_file.check_size(case, available=2.0**40)["memory"] < 2.0**40
+
+
+def test_other_command_line_mistakes(tmp_path, capsys):
+    folder = tmp_path / "folder.toml"
+    folder.mkdir()
+    assert cli.main(["run", str(folder)]) == 2
+    assert "is a folder, not a case file" in capsys.readouterr().err
+    case = _write(tmp_path, GEO)
+    assert cli.main(["run", case, "-o", os.path.join(case, "out")]) == 2
+    err = capsys.readouterr().err
+    assert "is a file, not a folder" in err and "Errno" not in err
+    for bad in (["render", str(tmp_path), "--alpha", "nan"], ["render", str(tmp_path), "--frames", "0"],
+                ["render", str(tmp_path), "--window-size", "1", "1"], ["plot", str(tmp_path), "--zoom", "0", "inf"],
+                ["export", str(tmp_path), "--alpha", "inf"]):
+        assert cli.main(bad) == 2, bad
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "error: argument" in err, err
+
+
+# ------------------------------------------------------------------ numbers (the API)
+def _system(K, f1=(-1.0, 0.0), f2=(1.0, 1.0), friction=0.3):
+    from cfcontact.system import ContactSystem
+
+    return ContactSystem.from_arrays(np.asarray(K, dtype=float), [[1.0, 0.0]], [[0.0, 1.0]], f1, f2, friction)
+
+
+def test_bad_numbers_in_the_api():
+    import cfcontact
+    from cfcontact.errors import InputError, NotPositiveDefiniteError, SingularSystemError
+    from cfcontact.system import ContactSystem
+
+    K = [[2.0, -1.0], [-1.0, 2.0]]
+    with pytest.raises(NotPositiveDefiniteError, match=r"K is not positive definite \(2 negative eigenvalues"):
+        cfcontact.trace_path(_system(-np.asarray(K)))
+    with pytest.raises(NotPositiveDefiniteError, match=r"1 negative eigenvalue of 2"):
+        cfcontact.trace_path(_system([[1.0, 2.0], [2.0, 1.0]]), method="exact")
+    with pytest.raises(SingularSystemError, match="K is singular") as info:
+        cfcontact.trace_path(_system([[1.0, -1.0], [-1.0, 1.0]]))
+    assert not isinstance(info.value, NotPositiveDefiniteError)
+    with pytest.raises(InputError, match="alpha must be a finite number"):
+        cfcontact.ssnm(_system(K), float("nan"))
+    with pytest.raises(InputError, match="K is empty"):
+        ContactSystem.from_arrays(np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), [], [], 0.3)
+    with pytest.raises(InputError, match="friction must be a number"):
+        _system(K, friction="x")
+    with pytest.raises(InputError, match="load vector f1 has entries up to 1e\\+308"):
+        _system(K, f1=(1e308, 0.0))
+    with pytest.raises(InputError, match="K has non-finite|K has entries up to"):
+        _system([[1e200, 0.0], [0.0, 1.0]])
+    with pytest.raises(InputError, match="overflows"):
+        _system(K, f1=(1e99, 0.0), f2=(-1e99, 0.0)).load(1e300)
+    with pytest.raises(InputError, match="alpha_end=1e\\+300"):
+        cfcontact.trace_path(_system(K), 0.0, 1e300)
+    assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
