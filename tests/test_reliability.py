@@ -173,3 +173,165 @@ def test_bad_numbers_in_the_api():
     with pytest.raises(InputError, match="alpha_end=1e\\+300"):
         cfcontact.trace_path(_system(K), 0.0, 1e300)
     assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
+
+
+# ------------------------------------------------------------------ corrupted saved paths and checkpoints
+@pytest.fixture(scope="module")
+def stopped(tmp_path_factory):
+    """A stopped run of TINY (its <out>.partial/ with a checkpoint) and a finished one: (case, partial, out)."""
+    d = tmp_path_factory.mktemp("stopped")
+    case = _write(d, TINY)
+    assert cli.main(["run", case, "-q", "--stop-after-transitions", "2", "-o", str(d / "stopped")]) == 3
+    assert cli.main(["run", case, "-q", "-o", str(d / "done")]) == 0
+    return case, str(d / "stopped.partial"), str(d / "done")
+
+
+def _npz_edit(fn, edit):
+    with np.load(fn) as z:
+        arrays = {k: z[k] for k in z.files}
+    edit(arrays)
+    np.savez(fn, **arrays)
+
+
+def _json_edit(fn, edit):
+    with open(fn) as fh:
+        data = json.load(fh)
+    edit(data)
+    with open(fn, "w") as fh:
+        json.dump(data, fh)
+
+
+def _truncate(fn, keep=0.5):
+    size = os.path.getsize(fn)
+    with open(fn, "r+b") as fh:
+        fh.truncate(int(size * keep))
+
+
+CORRUPTIONS = [
+    # (label, file under path/, how, words of the message)
+    ("path.json empty", "path.json", lambda fn: _truncate(fn, 0), ["path.json", "JSON"]),
+    ("path.json truncated", "path.json", lambda fn: _truncate(fn), ["path.json", "truncated"]),
+    ("path.json not an object", "path.json", lambda fn: open(fn, "w").write("[1, 2]"), ["path.json", "object"]),
+    ("path.json missing key", "path.json", lambda fn: _json_edit(fn, lambda d: d.pop("branches")),
+     ["path.json", "'branches'"]),
+    ("path.json wrong n", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(n=d["n"] + 2)),
+     ["fields.npz", "shape"]),
+    ("path.json bad sets", "path.json", lambda fn: _json_edit(fn, lambda d: d["branches"][0]["sets"].update(nu=[99])),
+     ["path.json", "branches[0].sets"]),
+    ("path.json bad transition", "path.json",
+     lambda fn: _json_edit(fn, lambda d: d["transitions"][0].update(to_branch=77)), ["path.json", "to_branch"]),
+    ("path.json nan rho", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(rho=float("nan"))),
+     ["path.json", "rho"]),
+    ("fields.npz empty", "fields.npz", lambda fn: _truncate(fn, 0), ["fields.npz", "not an .npz"]),
+    ("fields.npz truncated", "fields.npz", lambda fn: _truncate(fn), ["fields.npz", "truncated"]),
+    ("fields.npz missing", "fields.npz", os.remove, ["fields.npz", "missing"]),
+    ("fields.npz missing array", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.pop("ys")), ["'ys'", "missing"]),
+    ("fields.npz nan", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["ys"].__setitem__((0, 0), np.nan)),
+     ["'ys'", "non-finite"]),
+    ("fields.npz wrong shape", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.update(ys=a["ys"][:, :-1])),
+     ["'ys'", "shape"]),
+    ("fields.npz short alphas", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.update(alphas=a["alphas"][:-1])),
+     ["fields.npz", "shape"]),
+    ("fields.npz bad csr", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["N_indices"].__setitem__(0, 10**6)),
+     ["fields.npz", "CSR"]),
+    ("fields.npz bad branch", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["point_branch"].__setitem__(0, 99)),
+     ["point_branch"]),
+    ("fields.npz pickled", "fields.npz", lambda fn: np.save(open(fn, "wb"), np.array([{}]), allow_pickle=True),
+     ["fields.npz"]),
+]
+
+
+@pytest.mark.parametrize("label,name,how,words", CORRUPTIONS, ids=[c[0] for c in CORRUPTIONS])
+def test_corrupted_saved_path_exit_2_naming_the_file(tmp_path, capsys, stopped, label, name, how, words):
+    """Every corruption of a saved path: info, plot and run --resume exit 2 with one message naming
+    the file and what is wrong (the finished run's path/ and the stopped run's checkpoint alike)."""
+    _, partial, done = stopped
+    out = tmp_path / "done"
+    shutil.copytree(done, out)
+    how(str(out / "path" / name))
+    for command in (["info", str(out)], ["plot", str(out), "-o", str(tmp_path / "p.png")]):
+        assert cli.main(command) == 2, command
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in err, err
+        for w in words:
+            assert w in lines[0], (w, lines[0])
+    case = _write(tmp_path, TINY)
+    shutil.copytree(partial, tmp_path / "case_out.partial")
+    how(str(tmp_path / "case_out.partial" / "checkpoint" / "path" / name))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "checkpoint" in err and "--force" in err, err
+    assert os.path.isdir(tmp_path / "case_out.partial" / "checkpoint")  # kept: the user decides
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+
+
+STATE_CORRUPTIONS = [
+    ("truncated", lambda fn: _truncate(fn), ["state.json", "truncated"]),
+    ("not a checkpoint", lambda fn: _json_edit(fn, lambda d: d.update(format="x")), ["not a cfcontact checkpoint"]),
+    ("missing physics", lambda fn: _json_edit(fn, lambda d: d.pop("physics")), ["state.json", "'physics'"]),
+    ("nan resume state", lambda fn: _json_edit(fn, lambda d: d["resume_state"].update(h=float("nan"))),
+     ["state.json", "h", "finite"]),
+    ("other checksum", lambda fn: _json_edit(fn, lambda d: d.update(system_checksum="0" * 64)),
+     ["different systems"]),
+]
+
+
+@pytest.mark.parametrize("label,how,words", STATE_CORRUPTIONS, ids=[c[0] for c in STATE_CORRUPTIONS])
+def test_corrupted_checkpoint_state_exit_2(tmp_path, capsys, stopped, label, how, words):
+    case = _write(tmp_path, TINY)
+    shutil.copytree(stopped[1], tmp_path / "case_out.partial")
+    how(str(tmp_path / "case_out.partial" / "checkpoint" / "state.json"))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def test_another_cases_checkpoint_is_refused(tmp_path, capsys, stopped):
+    """Another case's checkpoint with the same n and m (other loads, so another system) placed under
+    --resume, its physics rewritten to match: the system checksum refuses it."""
+    other = TINY + "[loads.f1]\ntop1 = [3.0e7, -1.0e8]\n"
+    case = _write(tmp_path, other)
+    shutil.copytree(stopped[1], tmp_path / "case_out.partial")
+    from cfcontact import case as case_file
+
+    now = case_file.physics(case_file.load_case(case))
+    _json_edit(str(tmp_path / "case_out.partial" / "checkpoint" / "state.json"), lambda d: d.update(physics=now))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "belongs to another system" in err and "--force" in err, err
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
+    assert cli.main(["info", str(tmp_path / "case_out")]) == 0
+    assert f"system checksum {path.system_checksum}" in capsys.readouterr().out
+
+
+def test_kill_9_leftovers_are_cleaned_and_resume_never_points_back(tmp_path, capsys, stopped):
+    """What a kill -9 leaves: a <out>.partial/ without checkpoint (killed before the first one), or a
+    checkpoint with the temporary folders of a save and partial outputs beside it, and a stale lock
+    file (no live holder).  The next run cleans up; --resume without checkpoint says what to do."""
+    case = _write(tmp_path, TINY)
+    partial = tmp_path / "case_out.partial"
+    (partial / ".cfpath-x1").mkdir(parents=True)
+    (tmp_path / "case_out.lock").write_text('{"pid": 999999999}')
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "without --resume" in err and "--resume or" not in err, err
+    assert not partial.exists()
+    (partial / ".cfpath-x1").mkdir(parents=True)
+    assert cli.main(["run", case, "-q"]) == 0  # without --resume: the checkpoint-less folder is removed
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    # a checkpoint with leftovers beside and in it
+    shutil.rmtree(tmp_path / "case_out")
+    shutil.copytree(stopped[1], partial)
+    for name in (".checkpoint-new", ".cfpath-abc", "path.old-.cfpath-x"):
+        (partial / name).mkdir()
+    (partial / "path.png").write_bytes(b"half")
+    assert cli.main(["run", case, "-q"]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    assert not [n for n in os.listdir(tmp_path / "case_out") if n.startswith(".")]
