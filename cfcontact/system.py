@@ -253,7 +253,8 @@ class ContactSystem:
         """f(alpha) = (1 - alpha) f1 + alpha f2 as a whole NumPy array (on every rank)."""
         alpha = check_alpha(alpha)
         f1, f2 = self.loads_numpy()
-        f = (1.0 - alpha) * f1 + alpha * f2
+        with np.errstate(over="ignore", invalid="ignore"):  # checked right below
+            f = (1.0 - alpha) * f1 + alpha * f2
         if not np.all(np.isfinite(f)):
             raise InputError(f"the load f(alpha) overflows at alpha = {alpha:g} (|f1| <= {np.abs(f1).max():.3g}, "
                              f"|f2| <= {np.abs(f2).max():.3g}); rescale the loads")

@@ -335,3 +335,84 @@ def test_kill_9_leftovers_are_cleaned_and_resume_never_points_back(tmp_path, cap
     assert cli.main(["run", case, "-q", "--resume"]) == 0
     assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
     assert not [n for n in os.listdir(tmp_path / "case_out") if n.startswith(".")]
+
+
+# ------------------------------------------------------------------ interrupts and concurrent runs
+PLOTTED = TINY.replace("plot = false", "plot = true")
+
+
+@pytest.mark.slow
+def test_interrupt_at_random_points_then_resume_equals_uninterrupted(tmp_path):
+    """SIGINT to ``python -m cfcontact run`` at random moments (import, validation, assembly,
+    tracing, the traced checkpoint, plotting, shutdown): exit 0 or 130, never a traceback, one
+    interrupt line; what is left resumes (or starts over) to the uninterrupted path."""
+    case = _write(tmp_path, PLOTTED)
+    t0 = time.monotonic()
+    proc = _cfcontact("run", case, "-q", "-o", str(tmp_path / "ref"))
+    wall = time.monotonic() - t0
+    assert proc.returncode == 0, proc.stderr
+    ref = SolutionPath.load(str(tmp_path / "ref" / "path"))
+    rng = random.Random(14)
+    for k in range(8):
+        out = tmp_path / f"out{k}"
+        delay = rng.uniform(0.05, 1.1 * wall)
+        p = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case, "-o", str(out)], env=_env(), cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        p.send_signal(signal.SIGINT)
+        stdout, stderr = p.communicate(timeout=600)
+        note = f"trial {k}, SIGINT after {delay:.2f} s of {wall:.2f} s: rc {p.returncode}\n{stdout}\n{stderr}"
+        assert p.returncode in (0, 130), note
+        assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, note
+        assert len([ln for ln in stderr.splitlines() if "interrupted" in ln or "stopping" in ln]) <= 2, note
+        assert not os.path.exists(str(out) + ".lock"), note
+        if p.returncode == 130 and os.path.isdir(str(out) + ".partial"):
+            proc = _cfcontact("run", case, "-q", "--resume", "-o", str(out))
+            assert proc.returncode == 0, note + proc.stderr
+        elif not os.path.isdir(out):
+            proc = _cfcontact("run", case, "-q", "-o", str(out))
+            assert proc.returncode == 0, note + proc.stderr
+        path = SolutionPath.load(str(out / "path"))
+        assert path.status == ref.status and len(path.transitions) == len(ref.transitions), note
+        np.testing.assert_array_equal(path.alphas, ref.alphas)
+        np.testing.assert_allclose(path.ys, ref.ys, rtol=0, atol=1e-12 * np.abs(ref.ys).max())
+        assert (out / "path.png").is_file() and not os.path.exists(str(out) + ".partial"), note
+
+
+@pytest.mark.slow
+def test_two_concurrent_runs_into_one_folder(tmp_path):
+    """A second run (even with --force) into a folder a live run holds is refused with exit 2 naming
+    the holder's PID; the first run completes undisturbed.  After the holder is killed (-9), its lock
+    is taken over."""
+    case_a = _write(tmp_path, TINY, "a.toml")
+    case_b = _write(tmp_path, TINY.replace("friction = 1.5", "friction = 0.5"), "b.toml")
+    out = str(tmp_path / "shared")
+    a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out], env=_env(), cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not os.path.exists(out + ".lock") and time.monotonic() < deadline:
+        time.sleep(0.01)
+    a.send_signal(signal.SIGSTOP)  # hold it inside its run
+    try:
+        for flags in ([], ["--force"], ["--resume"]):
+            proc = _cfcontact("run", case_b, "-q", "-o", out, *flags)
+            assert proc.returncode == 2, proc.stderr
+            assert f"process {a.pid}" in proc.stderr and "in use by another run" in proc.stderr, proc.stderr
+            assert len(proc.stderr.strip().splitlines()) == 1
+    finally:
+        a.send_signal(signal.SIGCONT)
+    assert a.wait(timeout=600) == 0, a.stderr.read()
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    assert summary["case_file"] == case_a and summary["status"] == "completed"
+    assert not os.path.exists(out + ".lock")
+    # a holder killed with -9: the kernel drops its lock, the next run takes the lock file over
+    a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out, "--force"], env=_env(),
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    while not os.path.exists(out + ".lock") and a.poll() is None:
+        time.sleep(0.01)
+    a.kill()
+    a.wait()
+    proc = _cfcontact("run", case_b, "-q", "-o", out, "--force")
+    assert proc.returncode == 0, proc.stderr
+    assert json.load(open(os.path.join(out, "summary.json")))["case_file"] == case_b
+    assert sorted(os.listdir(tmp_path)) == ["a.toml", "b.toml", "shared"]
