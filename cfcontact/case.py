@@ -22,6 +22,8 @@ import hashlib
 import json
 import math
 import os
+import signal
+import threading
 import tomllib
 from dataclasses import dataclass, fields
 from typing import Any, Optional
@@ -354,7 +356,15 @@ def _geometry_script(kind):
     """The gmsh script module of a built-in kind (imports gmsh)."""
     from cfcontact.meshes import arc_on_block, two_blocks
 
+    python_sigint()
     return arc_on_block if kind == "arc" else two_blocks
+
+
+def python_sigint():
+    """gmsh 4.8 sets SIGINT to SIG_DFL when it is imported (validating a geometry imports it): a
+    Ctrl-C would kill the process silently.  Put Python's handler back (main thread only)."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 # ------------------------------------------------------------------ validation
@@ -500,6 +510,7 @@ def _model_groups(kind, geometry) -> dict:
         return {(d, n): name for name, (d, n) in tags.items() if not (foundation and (n == 2 or 20 <= n < 30))}
     import gmsh
 
+    python_sigint()
     from cfcontact import compat
 
     with compat.gmsh_model("cfcontact-cli-probe") as model:

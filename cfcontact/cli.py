@@ -27,7 +27,7 @@ import threading
 import time
 import traceback
 
-from cfcontact.case import CaseError, check_size, load_case, parse_component, reference_text
+from cfcontact.case import CaseError, check_size, load_case, parse_component, python_sigint, reference_text
 from cfcontact.errors import CfcontactError, InputError
 from cfcontact.options import ALPHA_LIMIT
 from cfcontact.report import format_report, path_report
@@ -168,17 +168,10 @@ def _sigint_ignored():
         signal.signal(signal.SIGINT, old)
 
 
-def _python_sigint():
-    """gmsh 4.8 sets SIGINT to SIG_DFL when imported (validating a built-in geometry imports it):
-    Ctrl-C would kill the run silently; put Python's handler back (main thread)."""
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
 def cmd_run(args):
     t_start = time.monotonic()
     case = load_case(args.case)
-    _python_sigint()
+    python_sigint()  # gmsh may have been imported meanwhile
     stops = StopConditions(time_limit=args.time_limit, stop_after_folds=args.stop_after_folds,
                            stop_after_transitions=args.stop_after_transitions, stop_at_alpha=args.stop_at_alpha,
                            checkpoint_every=args.checkpoint_every)
@@ -541,14 +534,33 @@ def main(argv=None) -> int:
     the command decides (``run`` keeps its checkpoint), elsewhere here; as the program, a Ctrl-C
     after the command (while Python, MPI and PETSc shut down) exits with 130 at once."""
     _PROGRAM["main"] = argv is None
+    lost = []
+    if _PROGRAM["main"]:
+        sys.unraisablehook = _lost_interrupt_hook(lost)
     try:
         code = _main(argv)
     except KeyboardInterrupt:
         print("cfcontact: interrupted", file=sys.stderr, flush=True)
         code = EXIT_INTERRUPTED
+    if lost and code == EXIT_OK:  # the Ctrl-C hit a finalizer (garbage collection) and the work went on
+        print("cfcontact: interrupted (the command had finished its work)", file=sys.stderr, flush=True)
+        code = EXIT_INTERRUPTED
     if _PROGRAM["main"]:
         _exit_on_late_interrupt()
     return code
+
+
+def _lost_interrupt_hook(lost):
+    """sys.unraisablehook: a KeyboardInterrupt raised inside a finalizer or weakref callback
+    (Python ignores it there and prints "Exception ignored ... Traceback") is noted in ``lost``
+    without a word; anything else goes to Python's hook."""
+    def hook(unraisable):
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            lost.append(unraisable)
+            return
+        sys.__unraisablehook__(unraisable)
+
+    return hook
 
 
 def _exit_on_late_interrupt():
