@@ -1,8 +1,12 @@
 """cfcontact: path following for 2D static contact with Coulomb friction (FEniCSx + PETSc).
 
-Importing cfcontact never imports dolfinx: the FEM layer (:func:`two_blocks`,
-:func:`assemble_contact_system`) is loaded when first used.
+Importing cfcontact loads only its exceptions: every other name (the solver layer with PETSc,
+the FEM layer with dolfinx: :func:`two_blocks`, :func:`assemble_contact_system`) is loaded when
+first used, so ``python -m cfcontact`` reaches its own code (and its Ctrl-C handling) at once.
 """
+
+import sys
+import types
 
 from cfcontact.errors import (
     CfcontactError,
@@ -10,27 +14,20 @@ from cfcontact.errors import (
     EnumerationTooLarge,
     GeometryError,
     InputError,
+    NotPositiveDefiniteError,
     PairingWarning,
     PathError,
     SingularSystemError,
 )
-from cfcontact.ssnm import (
-    DirNeuSolver,
-    InactiveSets,
-    Solution,
-    SolverOptions,
-    dirneu,
-    get_solver,
-    inactive_sets,
-    is_fixed_point,
-    ssnm,
-    verify,
-)
-from cfcontact.system import ContactGeometry, ContactSystem
 
 __version__ = "0.1.0"
 
 _LAZY = {
+    **{name: ("cfcontact.ssnm", name) for name in (
+        "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver", "inactive_sets",
+        "is_fixed_point", "ssnm", "verify")},
+    "ContactGeometry": ("cfcontact.system", "ContactGeometry"),
+    "ContactSystem": ("cfcontact.system", "ContactSystem"),
     "two_blocks": ("cfcontact.models", "two_blocks"),
     "arc_on_block": ("cfcontact.models", "arc_on_block"),
     "cylinder_on_block": ("cfcontact.models", "cylinder_on_block"),
@@ -48,6 +45,20 @@ _LAZY = {
 }
 
 
+class _Package(types.ModuleType):
+    """The package object: ``cfcontact.ssnm`` stays the function ``ssnm`` (as it was when this
+    module imported it eagerly), also after the submodule :mod:`cfcontact.ssnm` is imported
+    (the import system then sets the package attribute ``ssnm`` to the module)."""
+
+    def __setattr__(self, name, value):
+        if name == "ssnm" and isinstance(value, types.ModuleType) and hasattr(value, "ssnm"):
+            value = value.ssnm
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
 def __getattr__(name):
     if name in _LAZY:
         import importlib
@@ -58,8 +69,6 @@ def __getattr__(name):
 
 
 __all__ = [
-    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError", "PairingWarning",
-    "PathError",
-    "SingularSystemError", "DirNeuSolver", "InactiveSets", "Solution", "SolverOptions", "dirneu", "get_solver",
-    "inactive_sets", "is_fixed_point", "ssnm", "verify", "ContactGeometry", "ContactSystem", *_LAZY,
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError",
+    "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError", *_LAZY,
 ]

@@ -22,6 +22,8 @@ import hashlib
 import json
 import math
 import os
+import signal
+import threading
 import tomllib
 from dataclasses import dataclass, fields
 from typing import Any, Optional
@@ -32,7 +34,8 @@ from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
 from cfcontact.pairing import OBSTACLE_KEYS, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
-           "build_system", "physics", "path_request", "parse_component", "reference_text"]
+           "build_system", "physics", "path_request", "parse_component", "reference_text", "estimate_size",
+           "check_size", "available_memory", "SIZE_ESTIMATORS"]
 
 
 class CaseError(InputError):
@@ -482,6 +485,7 @@ def _geometry_script(kind):
     """The gmsh script module of a built-in kind (imports gmsh)."""
     from cfcontact.meshes import arc_on_block, cylinder_on_block, rounded_punch, two_blocks
 
+    python_sigint()
     return {"arc": arc_on_block, "cylinder": cylinder_on_block, "punch": rounded_punch}.get(kind, two_blocks)
 
 
@@ -500,6 +504,13 @@ def builtin_groups(kind, geometry) -> tuple:
             names = tuple(n for n in names if n not in ("left1", "left2")) + ("sym1", "sym2")
         return names
     return _BODY1_PIECES + _BODY2_PIECES
+
+
+def python_sigint():
+    """gmsh 4.8 sets SIGINT to SIG_DFL when it is imported (validating a geometry imports it): a
+    Ctrl-C would kill the process silently.  Put Python's handler back (main thread only)."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 # ------------------------------------------------------------------ validation
@@ -718,6 +729,7 @@ def _model_groups(kind, geometry) -> dict:
         return {tags[name]: name for name in builtin_groups(kind, geometry)}
     import gmsh
 
+    python_sigint()
     from cfcontact import compat
 
     with compat.gmsh_model("cfcontact-cli-probe") as model:
@@ -750,10 +762,15 @@ def _tag_number(tag, groups, dim):
 def load_case(filename) -> dict:
     """Read and validate a TOML case file; returns the normalised case with its text and location."""
     filename = os.fspath(filename)
+    if os.path.isdir(filename):
+        raise CaseError(f"{filename!r} is a folder, not a case file (give the .toml file)")
     if not os.path.isfile(filename):
         raise CaseError(f"no such case file: {filename!r}")
-    with open(filename, "rb") as fh:
-        data = fh.read()
+    try:
+        with open(filename, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise CaseError(f"cannot read the case file {filename!r}: {exc.strerror}") from None
     try:
         raw = tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:
@@ -764,6 +781,129 @@ def load_case(filename) -> dict:
     case["_file"] = os.path.abspath(filename)
     case["_text"] = data.decode("utf-8")
     return case
+
+
+# ------------------------------------------------------------------ size
+#: Largest number of DOFs PETSc can index with its (default) 32-bit integers.
+MAX_DOFS = 2**31 - 1
+#: Memory model of a run (calibrated on docs/bench.md, Part B: peak 1.65 GiB at n = 1.2e5 and
+#: 9.9 GiB at n = 1e6, MUMPS): a fixed part (Python, PETSc, dolfinx), per DOF the mesh,
+#: the assembly and the path (bytes), per factorization of K (or J(Z)) BYTES_PER_FACTOR_DOF x
+#: log2(n) bytes per DOF (the fill of a nested-dissection factor of a 2-D mesh and MUMPS' workspace).
+BASE_BYTES, BYTES_PER_DOF, BYTES_PER_FACTOR_DOF = 3.2e8, 3000.0, 450.0
+#: Factorizations kept at once: the condensed backend keeps K's; the full one up to SolverOptions.cache J(Z)'s.
+FULL_BACKEND_FACTORS = 4
+
+
+def _blocks_size(geo):
+    nodes = (geo.get("nx", 30) + 1) * (geo.get("ny", 10) + 1)
+    bodies = 1 if geo["kind"] == "block_on_foundation" else 2
+    return 2 * bodies * nodes, geo.get("nx", 30) + 1, ("nx", "ny")
+
+
+def _arc_size(geo):
+    defaults = _geometry_script("arc").DEFAULTS
+    nx, ny = geo.get("nx", defaults["nx"]), geo.get("ny", defaults["ny"])
+    ny2 = geo.get("ny2") or ny
+    return 2 * (nx + 1) * (ny + ny2 + 2), nx + 1, ("nx", "ny", "ny2")
+
+
+def _msh_size(geo):
+    """(nodes, contact1 nodes) of a .msh file, read with gmsh."""
+    import gmsh
+
+    from cfcontact import compat
+
+    with compat.gmsh_model("cfcontact-size-probe") as model:
+        try:
+            gmsh.merge(geo["file"])
+            tags = model.mesh.getNodes()[0]
+            try:
+                contact = model.mesh.getNodesForPhysicalGroup(1, 10)[0]
+            except Exception:  # no contact1 group: the assembly says so later
+                contact = ()
+        except Exception as exc:
+            raise CaseError(f"[geometry] file: gmsh cannot read {geo['file']!r}: {exc}") from None
+    return 2 * len(tags), max(len(contact), 1), ("file",)
+
+
+#: {geometry kind: geometry table -> (n estimate, m estimate, the keys that set the size)}
+SIZE_ESTIMATORS = {"two_blocks": _blocks_size, "block_on_foundation": _blocks_size, "inclined": _blocks_size,
+                   "arc": _arc_size, "msh": _msh_size}
+
+
+def available_memory() -> Optional[float]:
+    """Bytes of memory available to this process: MemAvailable of /proc/meminfo (or the free
+    physical pages), at most what a cgroup (container) limit leaves; None if unknown."""
+    avail = None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    avail = float(line.split()[1]) * 1024
+                    break
+    except OSError:
+        pass
+    if avail is None:
+        try:
+            avail = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError, AttributeError):
+            return None
+    try:
+        with open("/sys/fs/cgroup/memory.max") as fh:
+            limit = fh.read().strip()
+        with open("/sys/fs/cgroup/memory.current") as fh:
+            used = float(fh.read().strip())
+        if limit.isdigit():
+            avail = min(avail, float(limit) - used)
+    except (OSError, ValueError):
+        pass
+    return avail
+
+
+def _gib(b) -> str:
+    return f"{b / 2**30:.3g} GiB"
+
+
+def estimate_size(case) -> Optional[dict]:
+    """Estimate of a validated case's size before any work: n (DOFs), m (contact nodes) and the
+    memory of a run (bytes; :data:`BASE_BYTES` etc.), with the [geometry] keys that set it; None
+    for a geometry kind without an estimator (:data:`SIZE_ESTIMATORS`)."""
+    geo = case["geometry"]
+    estimator = SIZE_ESTIMATORS.get(geo["kind"])
+    if estimator is None:
+        return None
+    n, m, keys = estimator(geo)
+    p = case["path"]
+    condensed = p["backend"] == "condensed" or (p["backend"] == "auto" and p["method"] == "exact" and m <= 2000)
+    factor = BYTES_PER_FACTOR_DOF * n * math.log2(max(n, 2))
+    memory = BASE_BYTES + BYTES_PER_DOF * n + factor * (1 if condensed else FULL_BACKEND_FACTORS)
+    if condensed:
+        memory += 3 * 8.0 * (2 * m) ** 2  # S = B K^-1 B^T, its reduced copies and dense factors
+    where = ", ".join(f"{k} = {geo[k]!r}" if k == "file" else f"{k} = {geo[k]}" for k in keys if k in geo)
+    return {"n": int(n), "m": int(m), "memory": float(memory), "keys": keys,
+            "where": f"[geometry] {where}" if where else f"[geometry] kind = {geo['kind']!r} (its defaults)"}
+
+
+def check_size(case, allow_large: bool = False, available: Optional[float] = None) -> Optional[dict]:
+    """Refuse (CaseError) a case that cannot fit before any work: more DOFs than PETSc can index
+    (always), or an estimated memory (:func:`estimate_size`) above the memory available
+    (:func:`available_memory`, or ``available`` bytes) unless ``allow_large``.  Returns the estimate."""
+    est = estimate_size(case)
+    if est is None:
+        return None
+    n, m = est["n"], est["m"]
+    if n > MAX_DOFS:
+        raise CaseError(f"{est['where']}: the model would have about {n:.3g} DOFs, beyond the {MAX_DOFS} that PETSc "
+                        f"can index; use a coarser mesh")
+    if allow_large:
+        return est
+    available = available_memory() if available is None else available
+    if available is not None and est["memory"] > available:
+        raise CaseError(f"{est['where']}: the model would have about {n:.3g} DOFs and {m:.3g} contact nodes and "
+                        f"need about {_gib(est['memory'])} of memory, more than the {_gib(available)} this machine "
+                        f"has available; use a coarser mesh, or --allow-large to run anyway")
+    return est
 
 
 def physics(case) -> dict:

@@ -19,6 +19,7 @@ import argparse
 import contextlib
 import json
 import logging
+import math
 import os
 import signal
 import sys
@@ -26,8 +27,9 @@ import threading
 import time
 import traceback
 
-from cfcontact.case import CaseError, load_case, parse_component, reference_text
+from cfcontact.case import CaseError, check_size, load_case, parse_component, python_sigint, reference_text
 from cfcontact.errors import CfcontactError, InputError
+from cfcontact.options import ALPHA_LIMIT
 from cfcontact.report import format_report, path_report
 from cfcontact.run import (
     DEFAULT_CHECKPOINT_EVERY,
@@ -153,29 +155,53 @@ def _default_sigpipe():
 
 
 # ============================================================ run
+@contextlib.contextmanager
+def _sigint_ignored():
+    """Ctrl-C is ignored for a moment (cleaning up after an interrupt: one message, no traceback)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def cmd_run(args):
     t_start = time.monotonic()
     case = load_case(args.case)
+    python_sigint()  # gmsh may have been imported meanwhile
     stops = StopConditions(time_limit=args.time_limit, stop_after_folds=args.stop_after_folds,
                            stop_after_transitions=args.stop_after_transitions, stop_at_alpha=args.stop_at_alpha,
                            checkpoint_every=args.checkpoint_every)
-    run = CaseRun(case, args.output, force=args.force, resume=args.resume)
+    check_size(case, allow_large=args.allow_large)
+    with CaseRun(case, args.output, force=args.force, resume=args.resume, warn=lambda text: _warn(args, text)) as run:
+        return _run_case(args, case, run, stops, t_start)
+
+
+def _run_case(args, case, run, stops, t_start):
     progress = _Progress(enabled=not args.quiet and (args.verbose or sys.stderr.isatty()), tty=sys.stderr.isatty())
     runner = Runner(stops, progress, t_start)
     _ProgressAwareHandler.progress = progress
+    again = f"{args.case}" + (f" --output {args.output}" if args.output else "")
     try:
         run.start()
-        _say(args, f"cfcontact: building the model of {os.path.basename(case['_file'])}")
-        system = run.build()
-        with _sigint(runner, progress):
-            path = run.trace(system, runner)
+        if run.traced:
+            _say(args, f"cfcontact: the path of {os.path.basename(case['_file'])} is traced (checkpoint in "
+                       f"{run.partial}); writing the outputs")
+            path, system = run.resume["path"], None
+        else:
+            _say(args, f"cfcontact: building the model of {os.path.basename(case['_file'])}")
+            system = run.build()
+            with _sigint(runner, progress):
+                path = run.trace(system, runner)
         _default_sigpipe()
         if path.status != "completed":
             _warn(args, f"the path ended with status {path.status!r} (see the events in summary.json / info)")
         files = run.finish(path, lambda text: _warn(args, text), system)
     except Stopped as stop:
         progress.done()
-        again = f"{args.case}" + (f" --output {args.output}" if args.output else "")
         ck = os.path.join(run.partial, "checkpoint")
         if stop.resumable:
             _say(args, f"cfcontact: {stop.reason}; checkpoint in {ck}\ncontinue with: cfcontact run --resume {again}")
@@ -183,10 +209,21 @@ def cmd_run(args):
             _say(args, f"cfcontact: {stop.reason}; the partial path is in {ck} (cfcontact info {run.partial}); it "
                        f"left no resume state: start over with cfcontact run --force {again}")
         return EXIT_INTERRUPTED if stop.interrupted else EXIT_STOPPED
-    except BaseException:
-        progress.done()
-        if run.abandon():
-            print(f"cfcontact: a checkpoint remains in {run.partial} (cfcontact run --resume)", file=sys.stderr)
+    except KeyboardInterrupt:
+        with _sigint_ignored():
+            progress.done()
+            if run.abandon(interrupted=True):
+                print(f"cfcontact run: interrupted; the checkpoint in {run.partial} is kept: continue with: "
+                      f"cfcontact run --resume {again}", file=sys.stderr, flush=True)
+            else:
+                print("cfcontact run: interrupted before the path was traced; nothing to resume (run again to "
+                      "start over)", file=sys.stderr, flush=True)
+        return EXIT_INTERRUPTED
+    except BaseException as exc:
+        with _sigint_ignored():
+            progress.done()
+            if run.abandon() and not isinstance(exc, InputError):  # bad input: its one message says it all
+                print(f"cfcontact: a checkpoint remains in {run.partial} (cfcontact run --resume)", file=sys.stderr)
         raise
     finally:
         _ProgressAwareHandler.progress = None
@@ -363,8 +400,43 @@ def cmd_info(args):
 
 
 # ============================================================ argument parsing
+def _number(text, what="a finite number", ok=lambda v: True, kind=float):
+    """An argparse type: ``kind(text)`` that is finite and passes ``ok``, else a message saying ``what``."""
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if not (math.isfinite(value) and ok(value)):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def _finite(text):
+    return _number(text)
+
+
+def _alpha(text):
+    return _number(text, f"a finite alpha with |alpha| <= {ALPHA_LIMIT:g}", lambda v: abs(v) <= ALPHA_LIMIT)
+
+
+def _positive(text):
+    return _number(text, "a finite number > 0", lambda v: v > 0)
+
+
+def _non_negative(text):
+    return _number(text, "a finite number >= 0", lambda v: v >= 0)
+
+
+def _count(text):
+    return _number(text, "an integer >= 1", lambda v: v >= 1, int)
+
+
+def _pixels(text):
+    return _number(text, "an integer from 16 to 10000", lambda v: 16 <= v <= 10000, int)
+
+
 def _common():
-    p = argparse.ArgumentParser(add_help=False)
+    p = _Parser(add_help=False)
     g = p.add_mutually_exclusive_group()
     g.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     g.add_argument("-v", "--verbose", action="store_true",
@@ -380,14 +452,16 @@ def _setup_run(sub, common):
     p.add_argument("--force", action="store_true",
                    help="replace an existing output folder / discard a stopped run's checkpoint")
     p.add_argument("--resume", action="store_true", help="continue the stopped run in <output>.partial/")
-    p.add_argument("--stop-after-folds", type=int, metavar="N", help="stop (resumably) once the path has N folds")
-    p.add_argument("--stop-after-transitions", type=int, metavar="N",
+    p.add_argument("--stop-after-folds", type=_count, metavar="N", help="stop (resumably) once the path has N folds")
+    p.add_argument("--stop-after-transitions", type=_count, metavar="N",
                    help="stop (resumably) once the path has N transitions")
-    p.add_argument("--stop-at-alpha", type=float, metavar="A", help="stop (resumably) when the path reaches alpha A")
-    p.add_argument("--time-limit", type=float, metavar="SECONDS",
+    p.add_argument("--stop-at-alpha", type=_alpha, metavar="A", help="stop (resumably) when the path reaches alpha A")
+    p.add_argument("--time-limit", type=_positive, metavar="SECONDS",
                    help="stop (resumably) after this wall time (checked at each accepted point)")
-    p.add_argument("--checkpoint-every", type=float, metavar="SECONDS", default=DEFAULT_CHECKPOINT_EVERY,
+    p.add_argument("--checkpoint-every", type=_non_negative, metavar="SECONDS", default=DEFAULT_CHECKPOINT_EVERY,
                    help=f"checkpoint interval while tracing (default {DEFAULT_CHECKPOINT_EVERY:g}; 0: only on stop)")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run even when the estimated memory exceeds the memory available")
     p.set_defaults(func=cmd_run)
 
 
@@ -396,7 +470,7 @@ def _setup_plot(sub, common):
     p.add_argument("saved", metavar="SAVED_PATH_DIR")
     p.add_argument("--component", metavar="NAME:I", help="lam_n:12, lam_t:3, u:7 or an index of y "
                                                          "(default: the contact node whose lam_n varies most)")
-    p.add_argument("--zoom", nargs=2, type=float, metavar=("A", "B"), help="add a zoom panel on alpha in [A, B]")
+    p.add_argument("--zoom", nargs=2, type=_finite, metavar=("A", "B"), help="add a zoom panel on alpha in [A, B]")
     p.add_argument("--multiplicity", action="store_true", help="plot the number of solutions over alpha instead")
     p.add_argument("-o", "--output", metavar="FILE", help="FILE.png or FILE.pdf (default path.png / multiplicity.png)")
     p.set_defaults(func=cmd_plot)
@@ -405,13 +479,13 @@ def _setup_plot(sub, common):
 def _setup_render(sub, common):
     p = sub.add_parser("render", parents=[common], help="render deformed configurations of a saved path")
     p.add_argument("saved", metavar="SAVED_PATH_DIR")
-    p.add_argument("--alpha", type=float, metavar="A",
+    p.add_argument("--alpha", type=_finite, metavar="A",
                    help="render the solutions at alpha A (default: the alpha of largest multiplicity)")
     p.add_argument("--panel", action="store_true", help="panel layout even for a single solution")
     p.add_argument("--animation", metavar="FILE", help="animation along the path: FILE.gif, FILE.mp4 or a folder")
-    p.add_argument("--frames", type=int, default=60, help="animation frames (default 60)")
-    p.add_argument("--magnification", type=float, help="displacement scale (default: automatic)")
-    p.add_argument("--window-size", nargs=2, type=int, metavar=("W", "H"), help="picture size in pixels")
+    p.add_argument("--frames", type=_count, default=60, help="animation frames (default 60)")
+    p.add_argument("--magnification", type=_positive, help="displacement scale (default: automatic)")
+    p.add_argument("--window-size", nargs=2, type=_pixels, metavar=("W", "H"), help="picture size in pixels")
     p.add_argument("--stress", action="store_true", help="colour the cells by the von Mises stress")
     p.add_argument("-o", "--output", metavar="FILE.png", help="picture file (default render.png)")
     p.set_defaults(func=cmd_render)
@@ -424,7 +498,7 @@ def _setup_export(sub, common):
                                    "displacement, contact_state, lam_n, lam_t, body, von_mises.")
     p.add_argument("saved", metavar="SAVED_PATH_DIR")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--alpha", type=float, metavar="A",
+    g.add_argument("--alpha", type=_finite, metavar="A",
                    help="all solutions at alpha A (default: the alpha of largest multiplicity)")
     g.add_argument("--points", action="store_true", help="every stored path point, in path order (time series)")
     p.add_argument("-o", "--output", metavar="FILE.xdmf", help="XDMF file (default solutions.xdmf)")
@@ -475,10 +549,17 @@ SUBCOMMANDS = [("run", _setup_run), ("plot", _setup_plot), ("render", _setup_ren
                ("export", _setup_export), ("bench", _setup_bench), ("schema", _setup_schema)]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error: ``cfcontact run: error: ... (see cfcontact run --help)``."""
+
+    def error(self, message):
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser():
     from cfcontact import __version__
 
-    parser = argparse.ArgumentParser(prog="cfcontact", description="Path following for 2D static contact with "
+    parser = _Parser(prog="cfcontact", description="Path following for 2D static contact with "
                                      "Coulomb friction (FEniCSx + PETSc).")
     parser.add_argument("--version", action="version", version=f"cfcontact {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -490,8 +571,60 @@ def build_parser():
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``cfcontact`` command; returns the exit code."""
+    """Entry point of the ``cfcontact`` command; returns the exit code.
+
+    A Ctrl-C anywhere prints one line and gives 130 (never a traceback): inside a command as
+    the command decides (``run`` keeps its checkpoint), elsewhere here; as the program, a Ctrl-C
+    after the command (while Python, MPI and PETSc shut down) exits with 130 at once."""
     _PROGRAM["main"] = argv is None
+    lost = []
+    if _PROGRAM["main"]:
+        sys.unraisablehook = _lost_interrupt_hook(lost)
+    try:
+        code = _main(argv)
+    except KeyboardInterrupt:
+        print("cfcontact: interrupted", file=sys.stderr, flush=True)
+        code = EXIT_INTERRUPTED
+    if lost and code == EXIT_OK:  # the Ctrl-C hit a finalizer (garbage collection) and the work went on
+        print("cfcontact: interrupted (the command had finished its work)", file=sys.stderr, flush=True)
+        code = EXIT_INTERRUPTED
+    if _PROGRAM["main"]:
+        _exit_on_late_interrupt()
+    return code
+
+
+def _lost_interrupt_hook(lost):
+    """sys.unraisablehook: a KeyboardInterrupt raised inside a finalizer or weakref callback
+    (Python ignores it there and prints "Exception ignored ... Traceback") is noted in ``lost``
+    without a word; anything else goes to Python's hook."""
+    def hook(unraisable):
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            lost.append(unraisable)
+            return
+        sys.__unraisablehook__(unraisable)
+
+    return hook
+
+
+def _exit_on_late_interrupt():
+    """After the command: a Ctrl-C while the interpreter shuts down (atexit handlers of MPI and
+    PETSc) exits with 130 and one line, instead of a traceback under the command's exit code."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def handler(signum, frame):
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe: nothing more to say there
+                pass
+        os.write(2, b"cfcontact: interrupted\n")
+        os._exit(EXIT_INTERRUPTED)
+
+    signal.signal(signal.SIGINT, handler)
+
+
+def _main(argv) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

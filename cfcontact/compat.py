@@ -23,9 +23,15 @@ dofmap_array                ``dofmap.list`` AdjacencyList        2-D array
 from __future__ import annotations
 
 import contextlib
+import inspect
+import logging
 import os
 import re
+import signal
 import sys
+import tempfile
+import threading
+import time
 
 import numpy as np
 
@@ -77,7 +83,8 @@ def model_to_mesh(model, comm, rank: int = 0, gdim: int = 2):
     """
     from dolfinx.io import gmshio
 
-    out = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+    with quiet_jit("coordinate element"):
+        out = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
     if hasattr(out, "mesh"):  # dolfinx >= 0.10: MeshData
         return out.mesh, out.cell_tags, out.facet_tags
     mesh, ct, ft = out[0], out[1], out[2]
@@ -156,12 +163,13 @@ def meshtags_arrays(tags):
 def vector_p1_space(mesh):
     """Continuous piecewise-linear vector field space (P1 / Q1), value size = gdim."""
     gdim = mesh.geometry.dim
-    if hasattr(dolfinx.fem, "functionspace"):  # dolfinx >= 0.7
-        try:
-            return dolfinx.fem.functionspace(mesh, ("Lagrange", 1, (gdim,)))
-        except TypeError:  # pragma: no cover - 0.7 variants without the shape tuple
-            pass
-    return dolfinx.fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
+    with quiet_jit("finite element"):  # dolfinx 0.5 JIT-compiles the element of a space
+        if hasattr(dolfinx.fem, "functionspace"):  # dolfinx >= 0.7
+            try:
+                return dolfinx.fem.functionspace(mesh, ("Lagrange", 1, (gdim,)))
+            except TypeError:  # pragma: no cover - 0.7 variants without the shape tuple
+                pass
+        return dolfinx.fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
 
 
 def dofmap_array(V) -> np.ndarray:
@@ -180,9 +188,67 @@ def constant(mesh, value):
     return dolfinx.fem.Constant(mesh, np.asarray(value, dtype=SCALAR))
 
 
+# ------------------------------------------------------------------ JIT compilation
+log = logging.getLogger(__name__)
+
+
+@contextlib.contextmanager
+def quiet_jit(what: str = "form"):
+    """Silence the just-in-time compilation of FFCx/dolfinx (form and element code through cffi).
+
+    On a fresh form cache FFCx compiles C code with setuptools' distutils, which logs
+    ``running build_ext`` and every compiler command line through the *root* logger (FFCx 0.5
+    calls ``logging.basicConfig()`` at import and distutils lowers the root level to INFO), and
+    the compiler itself writes warnings to file descriptors 1 and 2.  Around compilation only:
+    logging up to INFO is disabled, the root logger's level is restored afterwards, and the C-level
+    stdout/stderr go to a temporary file whose text is logged at DEBUG (``cfcontact.compat``), or
+    attached to the error when the compilation fails.  The same on dolfinx 0.5 and 0.9 (both compile
+    through cffi/distutils; 0.9 does not call basicConfig, which makes no difference here)."""
+    root = logging.getLogger()
+    old_level, old_disable = root.level, logging.root.manager.disable
+    logging.disable(max(old_disable, logging.INFO))
+    t0 = time.perf_counter()
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (AttributeError, OSError, ValueError):  # closed or replaced streams: nothing to flush
+                pass
+        saved = []
+        try:
+            for fd in (1, 2):
+                try:
+                    saved.append((fd, os.dup(fd)))
+                except OSError:  # no such descriptor (a daemon): nothing to silence there
+                    continue
+                os.dup2(sink.fileno(), fd)
+            yield
+        except Exception as exc:
+            for fd, copy in saved:
+                os.dup2(copy, fd)
+            sink.seek(0)
+            text = sink.read().decode("utf-8", "replace").strip()
+            if text:
+                exc.add_note(f"output of the JIT compilation of a {what}:\n{text}")
+            raise
+        finally:
+            for fd, copy in saved:
+                os.dup2(copy, fd)
+                os.close(copy)
+            root.setLevel(old_level)
+            logging.disable(old_disable)
+        sink.seek(0)
+        text = sink.read().decode("utf-8", "replace").strip()
+    elapsed = time.perf_counter() - t0
+    if text:
+        log.debug("JIT compilation of a %s (%.2f s):\n%s", what, elapsed, text)
+
+
 # ------------------------------------------------------------------ assembly
 def form(ufl_form):
-    return dolfinx.fem.form(ufl_form)
+    """``dolfinx.fem.form`` (JIT-compiled on a cache miss, quietly: :func:`quiet_jit`)."""
+    with quiet_jit("form"):
+        return dolfinx.fem.form(ufl_form)
 
 
 def assemble_matrix(compiled_form) -> PETSc.Mat:
@@ -244,6 +310,15 @@ def _silenced_stderr():
         os.close(devnull)
 
 
+def python_sigint():
+    """Put Python's Ctrl-C handling back where gmsh removed it.  gmsh 4.8 sets SIGINT to SIG_DFL
+    when it is imported (until ``gmsh.finalize``), later versions in ``gmsh.initialize`` unless
+    ``interruptible=False``: a Ctrl-C would kill the process without a word.  With Python's
+    handler it raises KeyboardInterrupt once gmsh's C code returns (main thread only)."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 @contextlib.contextmanager
 def gmsh_model(name: str = "cfcontact"):
     """Context: a fresh current gmsh model, removed afterwards.
@@ -255,7 +330,11 @@ def gmsh_model(name: str = "cfcontact"):
 
     started = not gmsh_is_initialized()
     if started:
-        gmsh.initialize([], False)
+        if "interruptible" in inspect.signature(gmsh.initialize).parameters:  # gmsh >= 4.9
+            gmsh.initialize([], False, interruptible=False)
+        else:
+            gmsh.initialize([], False)
+        python_sigint()
         gmsh.option.setNumber("General.Terminal", 0)
         previous = None
     else:

@@ -24,6 +24,22 @@ class SingularSystemError(CfcontactError):
     """A linear system could not be factored (e.g. K singular: too few Dirichlet conditions)."""
 
 
+class NotPositiveDefiniteError(SingularSystemError, InputError):
+    """The stiffness K is not positive definite on the free DOFs (negative eigenvalues: a sign
+    error, a negative modulus...); not the same as singular (zero eigenvalues, too few Dirichlet
+    conditions), which is a :class:`SingularSystemError`.
+
+    Attributes
+    ----------
+    inertia : tuple
+        (negative, zero, positive) eigenvalue counts of K, from its factorization.
+    """
+
+    def __init__(self, message, inertia=None):
+        super().__init__(message)
+        self.inertia = inertia
+
+
 class ConvergenceError(CfcontactError):
     """The semi-smooth Newton method did not converge.
 

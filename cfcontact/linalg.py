@@ -143,3 +143,61 @@ def local_csr(A) -> sp.csr_matrix:
     r0, r1 = A.getOwnershipRange()
     ai, aj, av = A.getValuesCSR()
     return sp.csr_matrix((np.asarray(av).copy(), np.asarray(aj).copy(), np.asarray(ai).copy()), shape=(r1 - r0, n))
+
+
+def inertia(A):
+    """(negative, zero, positive) eigenvalue counts of a symmetric AIJ matrix from its LDL^T
+    (Cholesky) factorization, or None when this PETSc cannot tell (no MUMPS under MPI).  A
+    factorization that meets a zero pivot (PETSc records it and fails the first solve) counts as
+    one zero eigenvalue.
+
+    Serial and small (n <= 2000): PETSc's own Cholesky (no pivoting; a negative pivot is counted,
+    not refused); otherwise MUMPS' LDL^T with ICNTL(13) = 1 (inertia without ScaLAPACK) and ICNTL(24) = 1
+    (null pivots detected)."""
+    comm = A.getComm()
+    parallel = comm.getSize() > 1 or A.getSize()[0] > 2000  # MUMPS' ordering beyond small K
+    if parallel and not PETSc.Sys.hasExternalPackage("mumps"):
+        return None
+    ksp = PETSc.KSP().create(comm)
+    try:
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky")
+        if parallel:
+            pc.setFactorSolverType("mumps")
+            pc.setFactorSetUpSolverType()
+            fm = pc.getFactorMatrix()
+            fm.setMumpsIcntl(13, 1)
+            fm.setMumpsIcntl(24, 1)
+        else:
+            pc.setFactorOrdering("rcm")
+        try:
+            ksp.setUp()
+            x, b = A.createVecs()
+            b.set(1.0)
+            ksp.solve(b, x)
+            failed = ksp.getConvergedReason() < 0
+            x.destroy()
+            b.destroy()
+        except PETSc.Error:
+            failed = True
+        if failed:
+            n = A.getSize()[0]
+            return (0, 1, n - 1)
+        return tuple(int(k) for k in pc.getFactorMatrix().getInertia())
+    finally:
+        ksp.destroy()
+
+
+def local_finite_max(A) -> tuple:
+    """(all finite?, largest |entry|) of the locally owned entries of an AIJ matrix or a Vec,
+    reduced over the communicator (collective)."""
+    comm = A.getComm().tompi4py()
+    vals = np.asarray(A.getValuesCSR()[2]) if isinstance(A, PETSc.Mat) else np.asarray(A.getArray(readonly=True))
+    finite = bool(np.all(np.isfinite(vals)))
+    big = float(np.abs(vals[np.isfinite(vals)]).max(initial=0.0))
+    if comm.Get_size() > 1:
+        finite = comm.allreduce(finite, op=MPI.LAND)
+        big = comm.allreduce(big, op=MPI.MAX)
+    return finite, big

@@ -25,11 +25,23 @@ def check_plane(plane) -> str:
     return plane
 
 
+#: The range of Young's modulus the solver handles in double precision: K's entries are of the
+#: size of E, and its factorization treats pivots below ~1e-14 as zero; far above, the products
+#: of the path (indicators, residual norms) overflow.  Any unit system of real materials fits
+#: (rubber 1e6 Pa ... diamond 1.2e12 Pa; 1e-3 ... 1e3 in GPa), and so do nondimensional models.
+E_RANGE = (1e-6, 1e20)
+
+
 def check_modulus(E) -> float:
-    """Young's modulus: a finite number > 0."""
+    """Young's modulus: a finite number > 0 within :data:`E_RANGE`."""
     E = _number(E, "E")
     if not (np.isfinite(E) and E > 0):
         raise InputError(f"Young's modulus E must be a finite positive number, got {E!r}")
+    lo, hi = E_RANGE
+    if not lo <= E <= hi:
+        raise InputError(f"Young's modulus E = {E!r} is too {'small' if E < lo else 'large'} for double precision "
+                         f"(the stiffness would be {'zero to the factorization' if E < lo else 'near overflow'}); "
+                         f"use units in which it lies in [{lo:g}, {hi:g}] (e.g. MPa or GPa), scaling the loads alike")
     return E
 
 

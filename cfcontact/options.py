@@ -22,6 +22,11 @@ from cfcontact.errors import InputError
 METHODS = ("seed", "exact")
 #: DirNeu backends (:func:`cfcontact.path.select_solver`).
 BACKENDS = ("auto", "full", "condensed")
+#: The largest |alpha| of a path's range (alpha_start, alpha_end, alpha_min, alpha_max): the load
+#: f(alpha) = (1 - alpha) f1 + alpha f2 grows like |alpha|, so a longer range only repeats the
+#: asymptotic regime (and the seed method's steps of at most h_max could not cover it).
+ALPHA_LIMIT = 1e6
+
 #: Default relative tolerance of the exact method deciding that an indicator value or rate
 #: "vanishes": relative to the local size of the indicators, on top of their rounding error measured
 #: by iterative refinement (see :mod:`cfcontact.exact`).
@@ -121,6 +126,11 @@ class AlphaSpan:
         if not (math.isfinite(a0) and math.isfinite(a1)) or a0 == a1:
             raise InputError(f"alpha range is empty: alpha_start={alpha_start}, alpha_end={alpha_end} "
                              f"(need two different finite numbers)")
+        for name, value in (("alpha_start", a0), ("alpha_end", a1), ("alpha_min", options.alpha_min),
+                            ("alpha_max", options.alpha_max)):
+            if value is not None and not (abs(float(value)) <= ALPHA_LIMIT):
+                raise InputError(f"{name}={value!r} is out of range: |alpha| must be <= {ALPHA_LIMIT:g} (the load "
+                                 f"grows like |alpha|; rescale f1 and f2 for a longer range)")
         lo = min(a0, a1) if options.alpha_min is None else float(options.alpha_min)
         hi = max(a0, a1) if options.alpha_max is None else float(options.alpha_max)
         if not lo < hi:

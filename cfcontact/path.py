@@ -60,7 +60,10 @@ def select_solver(system: ContactSystem, method: str = "exact", backend: str = "
 
 def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, method: str = "seed", y0=None,
                  solver=None, resume=None):
-    """The stepper of ``method`` for a validated request (see :func:`trace_path`)."""
+    """The stepper of ``method`` for a validated request (see :func:`trace_path`).  K is checked
+    first (:meth:`~cfcontact.system.ContactSystem.check_positive_definite`: not positive definite
+    or singular, from the inertia of its Cholesky factorization)."""
+    system.check_positive_definite()
     if method == "exact":
         from cfcontact.exact import ExactStepper
 
@@ -105,5 +108,6 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     check_method(method)
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
     check_resume_method(resume, method)
+    system.check_positive_definite()  # before any backend factors K (cached: path_stepper checks again for free)
     solver = solver if solver is not None else select_solver(system, method, backend)
     return path_stepper(system, span, opts, method, y0, solver, resume).run(callback)

@@ -145,6 +145,7 @@ def path_report(path, declared=None) -> dict:
         "max_multiplicity": mult, "alpha_of_max": at,
         "events": [e.to_dict() for e in path.events], "stats": path.stats, "options": path.options,
         "contact": contact,
+        "system_checksum": getattr(path, "system_checksum", None),
     })
 
 
@@ -155,6 +156,8 @@ def format_report(rep, source) -> str:
              f"alpha {rep['alpha_start']:g} -> {rep['alpha_end']:g}",
              f"points {rep['points']}, branches {rep['branches']}, transitions {len(rep['transitions'])} "
              f"({sum(t['kind'] == 'transversal' for t in rep['transitions'])} transversal, {len(rep['folds'])} folds)"]
+    if rep.get("system_checksum"):
+        lines.append(f"system checksum {rep['system_checksum']} (SHA-256 of n, m, K, N, T, f1, f2, friction, gap, rho)")
     if rep["alpha_of_max"] is not None:
         lines.append(f"max multiplicity {rep['max_multiplicity']} (at alpha = {rep['alpha_of_max']:.10g})")
     lines.append("")

@@ -8,7 +8,17 @@ stop conditions (:class:`StopConditions`) and asks for a checkpoint ``<out>.part
 of the case) every ``checkpoint_every`` seconds: a save, the run goes on.  A stop condition (or
 an interrupt) stops the run at an accepted point, saves the checkpoint and raises
 :class:`Stopped`; ``CaseRun(..., resume=True)`` continues from the checkpoint and the result
-equals an uninterrupted run.
+equals an uninterrupted run.  When tracing ends the traced path is checkpointed at once
+(``state.json`` with ``"traced": true``), so an interrupt while the outputs are written (plots,
+renders: most of a run's wall time) leaves a checkpoint whose resume only writes the outputs.
+
+One run at a time per output folder: :class:`OutputLock` holds an advisory lock
+(``fcntl.flock``) on ``<out>.lock`` next to it, with the holder's PID and start time, for the
+whole run; a second run into the same folder (``--force`` included) is refused with the PID
+(the kernel drops the lock of a dead process, so a killed run's lock is taken over).  At
+the start of a run the leftovers of killed runs are removed: a ``<out>.partial/`` without a
+checkpoint, the temporary folders of an interrupted save (``.checkpoint-new``, ``.cfpath-*``),
+partial outputs beside a checkpoint, ``<out>.old``.
 
 Library code: nothing here prints; progress goes to a display object (``update(text, force)``,
 ``clear()``, ``done()``) and warnings to a callable, both given by the caller (the command line).
@@ -16,9 +26,14 @@ Library code: nothing here prints; progress goes to a display object (``update(t
 
 from __future__ import annotations
 
+import errno
+import fcntl
+import json
 import logging
+import math
 import os
 import shutil
+import socket
 import time
 import tomllib
 from dataclasses import dataclass
@@ -35,8 +50,8 @@ from cfcontact.stepper import CHECKPOINT
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "save_checkpoint", "load_checkpoint", "has_checkpoint",
-           "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "RUN_FORMAT",
+__all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
+           "has_checkpoint", "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
 RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
@@ -160,17 +175,95 @@ class Runner:
         self.display.done()
 
 
+# ============================================================ the lock
+class OutputLock:
+    """An advisory lock (``fcntl.flock``) on ``<out>.lock`` beside the output folder ``out``.
+
+    :meth:`acquire` raises CaseError naming the holder (PID, start time, host, command) when
+    another live process holds it, or when the lock file cannot be created (an unwritable or
+    missing parent).  :meth:`release` removes the file while still holding the lock; an
+    acquirer that locked a file removed meanwhile notices (another inode) and tries again."""
+
+    def __init__(self, out):
+        self.out = out
+        self.file = out + ".lock"
+        self.fd = None
+
+    def holder(self) -> dict:
+        """What the lock file says about its holder ({} if unreadable)."""
+        try:
+            with open(self.file) as fh:
+                info = json.loads(fh.read() or "{}")
+        except (OSError, ValueError):
+            return {}
+        return info if isinstance(info, dict) else {}
+
+    def acquire(self, command: str = "cfcontact run"):
+        while self.fd is None:
+            try:
+                fd = os.open(self.file, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise CaseError(f"cannot write the output folder {self.out!r}: {exc.strerror} ({self.file!r})") \
+                    from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise CaseError(f"cannot lock the output folder {self.out!r}: {exc.strerror}") from None
+                info = self.holder()
+                who = (f"process {info.get('pid', '?')} ({info.get('command', 'cfcontact run')}, started "
+                       f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(info['time']))} on "
+                       f"{info.get('host', '?')})" if isinstance(info.get("time"), (int, float)) else
+                       f"process {info.get('pid', '?')}")
+                raise CaseError(f"the output folder {self.out!r} is in use by another run: {who} holds "
+                                f"{self.file!r}; wait for it to end or choose another --output") from None
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.file))
+            except FileNotFoundError:
+                same = False
+            if not same:  # released and removed between our open and our lock: lock the new file
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.write(fd, json.dumps({"pid": os.getpid(), "time": time.time(), "host": socket.gethostname(),
+                                     "command": command}).encode())
+            self.fd = fd
+        return self
+
+    def release(self):
+        if self.fd is None:
+            return
+        try:
+            os.unlink(self.file)
+        except FileNotFoundError:
+            pass
+        finally:
+            fcntl.flock(self.fd, fcntl.LOCK_UN)
+            os.close(self.fd)
+            self.fd = None
+
+
 # ============================================================ checkpoints
 def save_checkpoint(partial, path, case, reason, resume_state):
     """Write ``<partial>/checkpoint/`` (path/ + state.json) atomically."""
+    return _write_checkpoint(partial, path, case, reason, resume_state)
+
+
+def save_traced(partial, path, case):
+    """The checkpoint of a traced path (``"traced": true``): resuming it only writes the outputs."""
+    return _write_checkpoint(partial, path, case, "traced", None, traced=True)
+
+
+def _write_checkpoint(partial, path, case, reason, resume_state, traced=False):
     final = os.path.join(partial, CHECKPOINT_DIRS[0])
     tmp = os.path.join(partial, ".checkpoint-new")
     shutil.rmtree(tmp, ignore_errors=True)
     os.makedirs(tmp)
     path.save(os.path.join(tmp, "path"))
     state = {"format": CHECKPOINT_FORMAT, "version": 1, "reason": reason, "time": time.time(),
-             "method": path.method, "resumable": resume_state is not None,
-             "resume_state": resume_state, "physics": physics(case),
+             "method": path.method, "resumable": traced or resume_state is not None, "traced": bool(traced),
+             "resume_state": resume_state, "physics": physics(case), "system_checksum": path.system_checksum,
              "case_file": case["_file"], "summary": path.summary()}
     write_json(os.path.join(tmp, "state.json"), state)
     old = os.path.join(partial, CHECKPOINT_DIRS[1])
@@ -188,11 +281,58 @@ def load_checkpoint(partial):
     for name in CHECKPOINT_DIRS:
         ck = os.path.join(partial, name)
         if os.path.isfile(os.path.join(ck, "state.json")) and os.path.isdir(os.path.join(ck, "path")):
-            state = read_json(os.path.join(ck, "state.json"))
-            if state.get("format") != CHECKPOINT_FORMAT:
-                raise CaseError(f"{ck}: not a cfcontact checkpoint")
-            return state, SolutionPath.load(os.path.join(ck, "path"))
-    raise CaseError(f"no checkpoint to resume from in {partial!r} (run without --resume)")
+            state = _read_state(os.path.join(ck, "state.json"))
+            try:
+                saved = SolutionPath.load(os.path.join(ck, "path"))
+            except InputError as exc:
+                raise CaseError(f"the checkpoint is damaged: {exc}; start over with --force") from None
+            if state["system_checksum"] != saved.system_checksum:
+                raise CaseError(f"{ck}: state.json and path/ belong to different systems (checksums "
+                                f"{str(state['system_checksum'])[:12]}... and {str(saved.system_checksum)[:12]}...); "
+                                f"start over with --force")
+            return state, saved
+    raise CaseError(f"nothing to resume: {partial!r} holds no checkpoint (the run was stopped before its first "
+                    f"one); start over by running without --resume")
+
+
+def _read_state(fn) -> dict:
+    """state.json of a checkpoint, checked (CaseError naming the file and what is wrong)."""
+    try:
+        state = read_json(fn)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise CaseError(f"{fn}: unreadable or truncated ({exc}); start over with --force") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise CaseError(f"{os.path.dirname(fn)}: not a cfcontact checkpoint")
+    for key, kinds in (("resumable", bool), ("physics", dict), ("method", str)):
+        if not isinstance(state.get(key), kinds):
+            raise CaseError(f"{fn}: key {key!r} is missing or of the wrong type; start over with --force")
+    rs = state.get("resume_state")
+    if state["resumable"] and not state.get("traced") and not isinstance(rs, dict):
+        raise CaseError(f"{fn}: key 'resume_state' is missing or not an object; start over with --force")
+    bad = _non_finite(rs) if rs is not None else None
+    if bad:
+        raise CaseError(f"{fn}: resume_state {bad} is not a finite number; start over with --force")
+    checksum = state.setdefault("system_checksum", None)
+    if checksum is not None and not (isinstance(checksum, str) and len(checksum) == 64):
+        raise CaseError(f"{fn}: system_checksum {checksum!r} is not a SHA-256 digest; start over with --force")
+    return state
+
+
+def _non_finite(value, where=""):
+    """The location of the first non-finite number (or JSON null standing for one) in ``value``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where or "(the value)"
+    if isinstance(value, dict):
+        for k, v in value.items():
+            bad = _non_finite(v, f"{where}.{k}" if where else str(k))
+            if bad:
+                return bad
+    if isinstance(value, list):
+        for i, v in enumerate(value):
+            bad = _non_finite(v, f"{where}[{i}]")
+            if bad:
+                return bad
+    return None
 
 
 def has_checkpoint(partial) -> bool:
@@ -200,12 +340,16 @@ def has_checkpoint(partial) -> bool:
 
 
 # ============================================================ outputs
-def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, system=None):
-    """Plots, renders, the saved path and summary.json into ``outdir``; returns the files written."""
+def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, system=None, saved=None):
+    """Plots, renders, the saved path and summary.json into ``outdir``; returns the files written.
+    ``saved``: a folder where ``path`` is already saved (the traced checkpoint): linked, not saved again."""
     out = case["output"]
     files = []
     t = time.perf_counter()
-    path.save(os.path.join(outdir, "path"))
+    if saved is not None and os.path.isdir(saved):
+        _link_tree(saved, os.path.join(outdir, "path"))
+    else:
+        path.save(os.path.join(outdir, "path"))
     files.append("path/")
     with open(os.path.join(outdir, "case.toml"), "w") as fh:
         fh.write(case["_text"])
@@ -308,6 +452,22 @@ def _is_run_folder(d):
         return False
 
 
+def _link_tree(src, dst):
+    """A copy of the folder ``src`` at ``dst`` by hard links (copies where links are refused)."""
+    def link(a, b):
+        try:
+            os.link(a, b)
+        except OSError:
+            shutil.copy2(a, b)
+
+    tmp = dst + ".tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(src, tmp, copy_function=link)
+    if os.path.isdir(dst):
+        shutil.rmtree(dst)
+    os.rename(tmp, dst)
+
+
 def _remove(p):
     if os.path.isdir(p) and not os.path.islink(p):
         shutil.rmtree(p)
@@ -318,12 +478,14 @@ def _remove(p):
 # ============================================================ a run
 class CaseRun:
     """One run of a validated case into its output folder (default ``<case stem>_out/`` next to
-    the case file).  The constructor checks the folders (CaseError: an existing output without
-    ``force``, a stopped run without ``resume`` or ``force``, a checkpoint that does not match the
-    case); :meth:`start`, :meth:`build`, :meth:`trace` and :meth:`finish` do the work, and
-    :meth:`abandon` cleans up after a failure."""
+    the case file).  The constructor takes the folder's lock (:class:`OutputLock`) and checks the
+    folders (CaseError: another run holds the folder, an existing output without ``force``, a
+    stopped run's checkpoint without ``resume`` or ``force``, a checkpoint that does not match
+    the case); :meth:`start`, :meth:`build`, :meth:`trace` and :meth:`finish` do the work,
+    :meth:`abandon` cleans up after a failure and :meth:`close` releases the lock (also a
+    context manager).  ``warn``: a callable for notes (leftovers of killed runs removed)."""
 
-    def __init__(self, case, output=None, force=False, resume=False):
+    def __init__(self, case, output=None, force=False, resume=False, warn: Callable = log.warning):
         self.case = case
         if output:
             out = os.path.abspath(output)
@@ -334,36 +496,81 @@ class CaseRun:
         self.partial = self.out + ".partial"
         self.resuming = bool(resume)
         self.timings = {}
+        self.created = False
+        self.resume = None
+        parent = os.path.dirname(self.out)
+        if os.path.exists(parent) and not os.path.isdir(parent):
+            raise CaseError(f"cannot write the output folder {self.out!r}: {parent!r} is a file, not a folder")
+        try:
+            os.makedirs(parent, exist_ok=True)
+        except OSError as exc:
+            raise CaseError(f"cannot create the folder {parent!r} for the output {self.out!r}: {exc.strerror}") \
+                from None
+        self.lock = OutputLock(self.out).acquire()
+        try:
+            self._check_folders(force, resume, warn)
+        except BaseException:
+            self.lock.release()
+            raise
+
+    def close(self):
+        """Release the output folder's lock."""
+        self.lock.release()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @property
+    def traced(self) -> bool:
+        """Does this run resume a complete (traced) path, so that only the outputs are left to write?"""
+        return bool(self.resume and self.resume.get("traced"))
+
+    def _check_folders(self, force, resume, warn):
+        if os.path.isdir(self.out + ".old") and os.path.isdir(self.out):  # a replacement killed halfway
+            shutil.rmtree(self.out + ".old", ignore_errors=True)
+        if os.path.exists(self.partial) and not has_checkpoint(self.partial):
+            # a run killed (or failed) before its first checkpoint: nothing in it can be resumed
+            _remove(self.partial)
+            if resume:
+                raise CaseError(f"nothing to resume: the run that left {self.partial!r} was stopped before its first "
+                                f"checkpoint (the folder is removed now); run without --resume to start over")
+            warn(f"removed {self.partial!r}, left by a run stopped before its first checkpoint")
         if os.path.exists(self.out):
             if not force:
                 raise CaseError(f"the output folder {self.out!r} exists; use --force to replace it or --output DIR")
             if not os.path.isdir(self.out) or not _is_run_folder(self.out):
                 raise CaseError(f"refusing to replace {self.out!r}: it is not a cfcontact output folder")
-        self.resume = None
         if resume:
             if not os.path.isdir(self.partial):
-                raise CaseError(f"nothing to resume: no folder {self.partial!r} (run without --resume)")
+                raise CaseError(f"nothing to resume: no stopped run left {self.partial!r}; run without --resume")
             state, saved = load_checkpoint(self.partial)
             if not state.get("resumable"):
                 raise CaseError(f"the checkpoint in {self.partial!r} (method {state.get('method')!r}) cannot be "
                                 f"resumed; start over with --force")
-            now = physics(case)
+            now = physics(self.case)
             changed = [k for k in now if state["physics"].get(k) != now[k]]
             if changed:
                 raise CaseError(f"the case file changed since the checkpoint in section(s) "
                                 f"{', '.join(f'[{k}]' for k in changed)}; restore it or start over with --force")
-            self.resume = {"path": saved, "state": state["resume_state"]}
+            self.resume = {"path": saved, "state": state["resume_state"], "traced": bool(state.get("traced"))}
         elif os.path.exists(self.partial):
             if not force:
-                raise CaseError(f"a stopped run left {self.partial!r}; continue it with --resume or start over "
-                                f"with --force")
+                raise CaseError(f"a stopped run left a checkpoint in {self.partial!r}; continue it with --resume or "
+                                f"start over with --force")
             shutil.rmtree(self.partial)
-        self.created = False
 
     def start(self):
-        """Create ``<out>.partial/``."""
+        """Create ``<out>.partial/`` (when resuming: remove everything in it but the checkpoint,
+        e.g. the temporary folders and partial outputs of a killed run)."""
         self.created = not os.path.isdir(self.partial)
         os.makedirs(self.partial, exist_ok=True)
+        if self.resuming:
+            for name in os.listdir(self.partial):
+                if name not in CHECKPOINT_DIRS:
+                    _remove(os.path.join(self.partial, name))
 
     def build(self):
         """The case's ContactSystem (timed; the [output] component is checked against it)."""
@@ -383,6 +590,9 @@ class CaseRun:
         Raises :class:`Stopped` (after writing the checkpoint) when the runner stops the run."""
         options, span = path_request(self.case)
         p = self.case["path"]
+        if self.resume is not None:
+            self.check_system(system)
+        system.check_positive_definite()
         solver = select_solver(system, p["method"], p["backend"])
         runner.begin(solver, self.resume["path"] if self.resume else None)
         stepper = path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume)
@@ -406,11 +616,18 @@ class CaseRun:
             raise Stopped(runner.reason, interrupted=runner.interrupted, resumable=path.resume_state is not None)
         self.timings["trace"] = time.perf_counter() - t
         runner.end(path)
+        t = time.perf_counter()
+        save_traced(self.partial, path, self.case)
+        self.timings["checkpoint"] = time.perf_counter() - t
+        if runner.interrupted:  # Ctrl-C while the traced path was saved
+            raise Stopped("interrupted (Ctrl-C) after tracing; the outputs are not written", interrupted=True)
         return path
 
     def finish(self, path, warn: Callable = log.warning, system=None) -> list:
         """Write the outputs into ``<out>.partial/``, drop the checkpoint, rename it to ``<out>/``."""
-        files = write_outputs(path, self.case, self.partial, self.timings, warn, system)
+        saved = os.path.join(self.partial, CHECKPOINT_DIRS[0], "path")
+        files = write_outputs(path, self.case, self.partial, self.timings, warn, system,
+                              saved=saved if self._traced_checkpoint() else None)
         for name in CHECKPOINT_DIRS:
             shutil.rmtree(os.path.join(self.partial, name), ignore_errors=True)
         if os.path.isdir(self.out):
@@ -423,15 +640,31 @@ class CaseRun:
             os.rename(self.partial, self.out)
         return files
 
-    def abandon(self) -> bool:
-        """After a failure: keep only the checkpoint in ``<out>.partial/`` (True), or remove the
-        folder when this run made it or started over (False)."""
-        if has_checkpoint(self.partial):
+    def check_system(self, system):
+        """CaseError when the resumed checkpoint belongs to another system (its checksum)."""
+        saved = self.resume["path"].system_checksum
+        if saved is not None and saved != system.checksum():
+            raise CaseError(f"the checkpoint in {self.partial!r} belongs to another system (checksum {saved[:12]}..., "
+                            f"this case's model {system.checksum()[:12]}...): it was written by another case or "
+                            f"another cfcontact; start over with --force")
+
+    def _traced_checkpoint(self) -> bool:
+        try:
+            return bool(read_json(os.path.join(self.partial, CHECKPOINT_DIRS[0], "state.json")).get("traced"))
+        except (OSError, ValueError, AttributeError):
+            return False
+
+    def abandon(self, interrupted: bool = False) -> bool:
+        """After a failure or an interrupt: keep only the checkpoint in ``<out>.partial/`` (True),
+        or remove the folder when this run made it or started over (False).  The checkpoint of a
+        traced path is kept after an interrupt only: a failure while writing the outputs would
+        fail again on resuming."""
+        if has_checkpoint(self.partial) and (interrupted or not self._traced_checkpoint()):
             for name in os.listdir(self.partial):
                 if name not in CHECKPOINT_DIRS:
                     _remove(os.path.join(self.partial, name))
             return True
-        if self.created or not self.resuming:
+        if self.created or not self.resuming or self._traced_checkpoint():
             shutil.rmtree(self.partial, ignore_errors=True)
         return False
 

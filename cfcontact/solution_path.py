@@ -207,13 +207,17 @@ class SolutionPath:
         self._ind: dict = {}
         self._pending: dict = {}
         self._scan = None  # cached multiplicity scan: (key, [(a, b, k)])
+        #: SHA-256 of the system the path belongs to (:meth:`ContactSystem.checksum`), None if unknown
+        self.system_checksum: Optional[str] = None
 
     # ------------------------------------------------------------- building
     @classmethod
     def for_system(cls, system: ContactSystem, method, alpha_start, alpha_end, options=None):
         N, T = system.contact_maps()
-        return cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
+        path = cls(system.n, system.m, N, T, system.friction, system.rho, method, alpha_start, alpha_end,
                    options, system.geometry, getattr(system, "gap", None))
+        path.system_checksum = system.checksum()
+        return path
 
     def add_branch(self, sets, orientation, Y1, Y2, origin=None, parent=None, alpha_enter=float("nan"),
                    multipliers=None, indicators=None, source=None, reference=None):
@@ -563,7 +567,8 @@ class SolutionPath:
                     "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
                     "stats": self.stats, "branches": [b.to_dict() for b in self.branches],
                     "transitions": [t.to_dict() for t in self.transitions],
-                    "events": [e.to_dict() for e in self.events], "has_geometry": self.geometry is not None}
+                    "events": [e.to_dict() for e in self.events], "has_geometry": self.geometry is not None,
+                    "system_checksum": self.system_checksum}
             with open(os.path.join(tmp, "path.json"), "w") as fh:
                 json.dump(jsonable(meta, strict=False), fh, indent=1)
             self.form()
@@ -592,17 +597,14 @@ class SolutionPath:
 
     @classmethod
     def load(cls, path) -> "SolutionPath":
-        """Read a path written by :meth:`save`."""
+        """Read a path written by :meth:`save`.  Every file is checked first
+        (:func:`read_saved_meta`, :func:`read_saved_arrays`, :func:`validate_saved`): a missing,
+        truncated or corrupted file, a missing key, a wrongly shaped or non-finite array is an
+        InputError naming the file and what is wrong."""
         path = os.fspath(path)
-        jpath = os.path.join(path, "path.json")
-        if not os.path.isfile(jpath):
-            raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
-        with open(jpath) as fh:
-            meta = json.load(fh)
-        if meta.get("format") != "cfcontact-path" or meta.get("version") not in (1, FORMAT_VERSION):
-            raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
-        with np.load(os.path.join(path, "fields.npz")) as z:
-            arrays = {k: z[k] for k in z.files}
+        meta = read_saved_meta(path)
+        arrays = read_saved_arrays(path)
+        validate_saved(meta, arrays, path)
         n, m = meta["n"], meta["m"]
         N = sp.csr_matrix((arrays["N_data"], arrays["N_indices"], arrays["N_indptr"]), shape=(m, n))
         T = sp.csr_matrix((arrays["T_data"], arrays["T_indices"], arrays["T_indptr"]), shape=(m, n))
@@ -628,7 +630,208 @@ class SolutionPath:
         p.events = [PathEvent(**d) for d in meta["events"]]
         p.status = meta["status"]
         p.stats = meta["stats"]
+        p.system_checksum = meta.get("system_checksum")
         return p
+
+
+# ------------------------------------------------------------ checks of saved files
+class _Bad(Exception):
+    """What is wrong with one saved item (turned into an InputError naming the file)."""
+
+
+def read_saved_meta(path) -> dict:
+    """path.json of a saved path, parsed and checked against the format (InputError naming the file)."""
+    jpath = os.path.join(path, "path.json")
+    if not os.path.isfile(jpath):
+        raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
+    try:
+        with open(jpath) as fh:
+            meta = json.load(fh)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{jpath}: unreadable or truncated JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{jpath}: not a saved cfcontact path (a JSON {type(meta).__name__}, expected an object)")
+    if meta.get("format") != "cfcontact-path" or meta.get("version") not in (1, FORMAT_VERSION):
+        raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
+    try:
+        _check_meta(meta)
+    except _Bad as exc:
+        raise InputError(f"{jpath}: {exc}") from None
+    return meta
+
+
+def read_saved_arrays(path) -> dict:
+    """The arrays of fields.npz of a saved path (InputError naming the file: missing, empty,
+    truncated, not an .npz archive, pickled data)."""
+    fpath = os.path.join(path, "fields.npz")
+    if not os.path.isfile(fpath):
+        raise InputError(f"{fpath}: missing (the saved path has no arrays)")
+    try:
+        with np.load(fpath, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except Exception as exc:  # zipfile.BadZipFile, EOFError, ValueError (pickled / empty), OSError, zlib.error
+        raise InputError(f"{fpath}: truncated or not an .npz archive of arrays ({type(exc).__name__}: {exc})") \
+            from None
+
+
+def _need(d, key, kinds, where):
+    if key not in d:
+        raise _Bad(f"missing key {key!r}{where}")
+    value = d[key]
+    if not isinstance(value, kinds) or isinstance(value, bool) and bool not in (kinds if isinstance(kinds, tuple)
+                                                                               else (kinds,)):
+        raise _Bad(f"key {key!r}{where} has the wrong type ({type(value).__name__})")
+    return value
+
+
+def _finite_number(d, key, where, optional=False):
+    if optional and d.get(key) is None:
+        return
+    v = _need(d, key, (int, float), where)
+    if not np.isfinite(v):
+        raise _Bad(f"key {key!r}{where} is not finite ({v!r})")
+
+
+def _check_meta(meta):
+    """Keys and types of path.json (the structure; the arrays are checked by validate_saved)."""
+    n, m = _need(meta, "n", int, ""), _need(meta, "m", int, "")
+    if n < 1 or m < 0:
+        raise _Bad(f"n = {n}, m = {m}: need n >= 1 and m >= 0")
+    _finite_number(meta, "rho", "")
+    if not meta["rho"] > 0:
+        raise _Bad(f"rho = {meta['rho']!r} must be > 0")
+    _need(meta, "method", str, "")
+    _finite_number(meta, "alpha_start", "")
+    _finite_number(meta, "alpha_end", "")
+    _need(meta, "options", dict, "")
+    _need(meta, "status", str, "")
+    _need(meta, "stats", dict, "")
+    for key in ("branches", "transitions", "events"):
+        _need(meta, key, list, "")
+    checksum = meta.get("system_checksum")
+    if checksum is not None and not (isinstance(checksum, str) and len(checksum) == 64):
+        raise _Bad(f"system_checksum {checksum!r} is not a SHA-256 hex digest")
+    nb = len(meta["branches"])
+    for k, b in enumerate(meta["branches"]):
+        where = f" in branches[{k}]"
+        if not isinstance(b, dict):
+            raise _Bad(f"branches[{k}] is not an object")
+        if _need(b, "index", int, where) != k:
+            raise _Bad(f"branches[{k}] has index {b['index']}")
+        sets = _need(b, "sets", dict, where)
+        if sets.get("m") != m or not all(isinstance(sets.get(name), list) and all(
+                isinstance(i, int) and 0 <= i < m for i in sets[name]) for name in SET_NAMES):
+            raise _Bad(f"branches[{k}].sets are not inactive sets of m = {m} nodes")
+        if _need(b, "orientation", int, where) not in (-1, 1):
+            raise _Bad(f"branches[{k}].orientation must be +1 or -1")
+        _need(b, "points", list, where)
+        for key in ("alpha_enter", "alpha_exit"):
+            if b.get(key) is not None:
+                _need(b, key, (int, float), where)
+        for key in ("origin", "parent"):
+            if b.get(key) is not None and not isinstance(b[key], int):
+                raise _Bad(f"key {key!r}{where} has the wrong type")
+    for k, t in enumerate(meta["transitions"]):
+        where = f" in transitions[{k}]"
+        if not isinstance(t, dict):
+            raise _Bad(f"transitions[{k}] is not an object")
+        for key in ("from_branch", "to_branch"):
+            if not 0 <= _need(t, key, int, where) < max(nb, 1):
+                raise _Bad(f"transitions[{k}].{key} = {t[key]} is not a branch (0..{nb - 1})")
+        for key in ("index", "alpha", "kind", "node", "set", "bracket"):
+            if key not in t:
+                raise _Bad(f"missing key {key!r}{where}")
+    for k, e in enumerate(meta["events"]):
+        if not isinstance(e, dict) or not {"kind", "alpha", "message"} <= set(e):
+            raise _Bad(f"events[{k}] is not an event (kind, alpha, message)")
+
+
+def expected_arrays(meta, arrays) -> dict:
+    """{array name: (expected shape (None = any length), kind)} of fields.npz for the path.json
+    ``meta``; kind "f" (finite floats), "i" (integers) or "s" (text).  P = number of points,
+    B = number of branches, from the arrays and the branches.  Arrays of the geometry only when
+    it is saved."""
+    n, m = meta["n"], meta["m"]
+    P = len(arrays["alphas"]) if "alphas" in arrays and np.ndim(arrays["alphas"]) == 1 else None
+    B = len(meta["branches"])
+    width = n + 2 * m
+    exp = {"alphas": ((P,), "f"), "ys": ((P, width), "f"), "point_branch": ((P,), "i"),
+           "friction": (None, "f"),
+           "N_data": ((None,), "f"), "N_indices": ((None,), "i"), "N_indptr": ((m + 1,), "i"),
+           "T_data": ((None,), "f"), "T_indices": ((None,), "i"), "T_indptr": ((m + 1,), "i")}
+    if B and meta.get("version") == 1:  # the branches at alpha = 0 and 1
+        exp["Y1"] = ((B, width), "f")
+        exp["Y2"] = ((B, width), "f")
+    elif B:  # the branches in reference form
+        exp["alpha_ref"] = ((B,), "f")
+        exp["Y_ref"] = ((B, width), "f")
+        exp["dY"] = ((B, width), "f")
+    if meta.get("version", FORMAT_VERSION) >= 2:
+        exp["gap"] = ((m,), "f")
+    if meta.get("has_geometry"):
+        exp.update({"geometry_points": ((None, 2), "f"), "geometry_cells": ((None, None), "i"),
+                    "geometry_cell_body": ((None,), "i"), "geometry_dof_node": ((n,), "i"),
+                    "geometry_dof_comp": ((n,), "i"), "geometry_contact_nodes": ((m, 2), "i"),
+                    "geometry_contact_points": ((m, 2), "f"), "geometry_normals": ((m, 2), "f"),
+                    "geometry_tangents": ((m, 2), "f")})
+        optional = {"geometry_tributary": ((m,), "f"), "geometry_prescribed": ((None, 4), "f"),
+                    "geometry_material": ((), "s"), "geometry_obstacle": ((), "s")}
+        exp.update({k: v for k, v in optional.items() if k in arrays})
+    return exp
+
+
+def validate_arrays(arrays, expected, where):
+    """Check every expected array by name (present), shape (None: any length) and kind (finite
+    floats, integers, text); InputError naming ``where`` and the array."""
+    for name, (shape, kind) in expected.items():
+        if name not in arrays:
+            raise InputError(f"{where}: array {name!r} is missing")
+        a = arrays[name]
+        if shape is not None and (a.ndim != len(shape) or any(e is not None and e != s
+                                                               for e, s in zip(shape, a.shape))):
+            want = "(" + ", ".join("*" if e is None else str(e) for e in shape) + ("," if len(shape) == 1 else "") + ")"
+            raise InputError(f"{where}: array {name!r} has shape {a.shape}, expected {want}")
+        if kind == "f":
+            if a.dtype.kind not in "fiu":
+                raise InputError(f"{where}: array {name!r} is not numeric ({a.dtype})")
+            if not np.all(np.isfinite(a)):
+                raise InputError(f"{where}: array {name!r} has non-finite values (nan or inf)")
+        elif kind == "i" and a.dtype.kind not in "iu":
+            raise InputError(f"{where}: array {name!r} is not an integer array ({a.dtype})")
+        elif kind == "s" and a.dtype.kind not in "US":
+            raise InputError(f"{where}: array {name!r} is not text ({a.dtype})")
+
+
+def validate_saved(meta, arrays, path):
+    """The arrays of a saved path against its path.json (:func:`expected_arrays`), and the
+    references between them (CSR structure of N and T, branch and node indices)."""
+    where = os.path.join(path, "fields.npz")
+    validate_arrays(arrays, expected_arrays(meta, arrays), where)
+    n, m = meta["n"], meta["m"]
+    for name in ("N", "T"):
+        ptr, idx, data = arrays[f"{name}_indptr"], arrays[f"{name}_indices"], arrays[f"{name}_data"]
+        if ptr[0] != 0 or np.any(np.diff(ptr) < 0) or ptr[-1] != len(idx) or len(idx) != len(data) \
+                or (len(idx) and (idx.min() < 0 or idx.max() >= n)):
+            raise InputError(f"{where}: {name} is not a valid {m} x {n} CSR matrix")
+    fr = arrays["friction"]
+    if not (fr.ndim == 0 or fr.shape == (m,)) or np.any(fr < 0):
+        raise InputError(f"{where}: array 'friction' must be a number >= 0 or one per contact node ({m},)")
+    P, B = len(arrays["alphas"]), len(meta["branches"])
+    pb = arrays["point_branch"]
+    if P and (pb.min() < 0 or pb.max() >= B):
+        raise InputError(f"{where}: array 'point_branch' refers to branches outside 0..{B - 1}")
+    for k, b in enumerate(meta["branches"]):
+        if not all(isinstance(i, int) and 0 <= i < P for i in b["points"]):
+            raise InputError(f"{os.path.join(path, 'path.json')}: branches[{k}].points refer to points outside "
+                             f"0..{P - 1} (fields.npz has {P})")
+    if meta.get("has_geometry"):
+        npts = len(arrays["geometry_points"])
+        for name in ("geometry_cells", "geometry_dof_node"):
+            a = arrays[name]
+            if a.size and (a.min() < 0 or a.max() >= npts):
+                raise InputError(f"{where}: array {name!r} refers to nodes outside 0..{npts - 1}")
+        if len(arrays["geometry_cell_body"]) != len(arrays["geometry_cells"]):
+            raise InputError(f"{where}: arrays 'geometry_cell_body' and 'geometry_cells' differ in length")
 
 
 def _same_point(a, b, n, rtol) -> bool:

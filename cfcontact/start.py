@@ -162,6 +162,10 @@ def resume_parts(system, alpha_start, alpha_end, resume, method):
         raise InputError(f"cannot resume from {path!r}: not a started {method} path")
     if (path.n, path.m) != (system.n, system.m):
         raise InputError(f"cannot resume: the path has n={path.n}, m={path.m}, the system n={system.n}, m={system.m}")
+    saved = getattr(path, "system_checksum", None)
+    if saved is not None and saved != system.checksum():
+        raise InputError(f"cannot resume: the path belongs to another system (checksum {saved[:12]}..., this system "
+                         f"{system.checksum()[:12]}...)")
     if (path.alpha_start, path.alpha_end) != (float(alpha_start), float(alpha_end)):
         raise InputError(f"cannot resume: the path runs from {path.alpha_start} to {path.alpha_end}, "
                          f"not from {alpha_start} to {alpha_end}")

@@ -20,6 +20,7 @@ or from plain matrices (:meth:`ContactSystem.from_arrays`) for lumped models.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from dataclasses import dataclass, field
 from typing import Optional
@@ -30,7 +31,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from cfcontact import linalg
-from cfcontact.errors import InputError
+from cfcontact.errors import InputError, NotPositiveDefiniteError, SingularSystemError
+
+#: Largest magnitude accepted in K, N, T, the loads, rho and the gap: the path multiplies and
+#: squares them (indicators, residual norms), which must stay far from overflow (1.8e308).
+MAGNITUDE_LIMIT = 1e100
+#: K is checked by the inertia of a Cholesky factorization up to this many DOFs (milliseconds
+#: to a second); larger K (FEM models, SPD by construction when E > 0 and -1 < nu < 0.5) by
+#: the signs of its diagonal only, to spare the path a second factorization of a large K.
+INERTIA_MAX_DOFS = 50_000
 
 
 @dataclass(eq=False)
@@ -180,11 +189,28 @@ class ContactSystem:
             size = getattr(self, name).getSize()
             if size != n:
                 raise InputError(f"load vector {name} has length {size}, expected n = {n} (the size of K)")
+        if n == 0:
+            raise InputError("K is empty (0 x 0): the system needs at least one displacement DOF")
+        for name in ("K", "N", "T", "f1", "f2"):
+            finite, big = linalg.local_finite_max(getattr(self, name))
+            what = {"K": "the stiffness K", "N": "the normal map N", "T": "the tangential map T",
+                    "f1": "the load vector f1", "f2": "the load vector f2"}[name]
+            if not finite:
+                raise InputError(f"{what} has non-finite entries (inf or nan){_overflow_hint(name)}")
+            if big > MAGNITUDE_LIMIT:
+                raise InputError(f"{what} has entries up to {big:.3g}, beyond {MAGNITUDE_LIMIT:g}, too close to "
+                                 f"overflow in double precision{_overflow_hint(name)}")
         self.friction = _check_friction(self.friction, m)
-        if not (np.isfinite(self.rho) and self.rho > 0):
-            raise InputError(f"rho must be a finite positive number, got {self.rho!r}")
-        self.rho = float(self.rho)
+        try:
+            rho = float(self.rho)
+        except (TypeError, ValueError):
+            raise InputError(f"rho must be a finite positive number, got {self.rho!r}") from None
+        if not (np.isfinite(rho) and 0 < rho <= MAGNITUDE_LIMIT):
+            raise InputError(f"rho must be a finite positive number (at most {MAGNITUDE_LIMIT:g}), got {self.rho!r}")
+        self.rho = rho
         self.gap = _check_gap(self.gap, m)
+        if np.abs(self.gap).max(initial=0.0) > MAGNITUDE_LIMIT:
+            raise InputError(f"the gap reaches {np.abs(self.gap).max():.3g}, beyond {MAGNITUDE_LIMIT:g}: rescale the units")
         self._cache = {}
 
     # ------------------------------------------------------------------ basics
@@ -225,8 +251,67 @@ class ContactSystem:
 
     def load(self, alpha: float) -> np.ndarray:
         """f(alpha) = (1 - alpha) f1 + alpha f2 as a whole NumPy array (on every rank)."""
+        alpha = check_alpha(alpha)
         f1, f2 = self.loads_numpy()
-        return (1.0 - alpha) * f1 + alpha * f2
+        with np.errstate(over="ignore", invalid="ignore"):  # checked right below
+            f = (1.0 - alpha) * f1 + alpha * f2
+        if not np.all(np.isfinite(f)):
+            raise InputError(f"the load f(alpha) overflows at alpha = {alpha:g} (|f1| <= {np.abs(f1).max():.3g}, "
+                             f"|f2| <= {np.abs(f2).max():.3g}); rescale the loads")
+        return f
+
+    # ------------------------------------------------------------ checks
+    def inertia(self):
+        """(negative, zero, positive) eigenvalue counts of K (cached; None when this PETSc cannot
+        tell).  Collective: one Cholesky (LDL^T) factorization of K, unless a backend that factored
+        K by Cholesky already stored its inertia (:class:`cfcontact.condensed.CondensedSolver`)."""
+        if "inertia" not in self._cache:
+            self._cache["inertia"] = linalg.inertia(self.K)
+        return self._cache["inertia"]
+
+    def _diagonal_signs(self):
+        """(non-positive diagonal entries of K, the first of them) over all ranks."""
+        d = np.asarray(self.K.getDiagonal().getArray(readonly=True))
+        r0 = self.K.getOwnershipRange()[0]
+        bad = np.flatnonzero(d <= 0.0)
+        first = int(bad[0]) + r0 if bad.size else -1
+        count = self.comm.allreduce(int(bad.size))
+        firsts = [f for f in self.comm.allgather(first) if f >= 0]
+        return count, (min(firsts) if firsts else -1)
+
+    def check_positive_definite(self):
+        """Raise :class:`~cfcontact.errors.NotPositiveDefiniteError` when K has negative eigenvalues
+        (a sign error, an indefinite matrix) and :class:`~cfcontact.errors.SingularSystemError`
+        when it has zero ones (a body without enough Dirichlet conditions); the path methods call
+        this before tracing.  Nothing when the inertia is unknown."""
+        if self.n > INERTIA_MAX_DOFS:
+            count, first = self._diagonal_signs()
+            if count:
+                raise NotPositiveDefiniteError(f"K is not positive definite: {count} diagonal entr"
+                                               f"{'ies are' if count != 1 else 'y is'} <= 0 (the first K[{first}, "
+                                               f"{first}]); a stiffness matrix must be symmetric positive definite "
+                                               f"on the free DOFs")
+            return
+        inertia = self.inertia()
+        if inertia is None:
+            return
+        neg, zero, pos = inertia
+        if neg:
+            raise NotPositiveDefiniteError(f"K is not positive definite ({neg} negative eigenvalue"
+                                           f"{'s' if neg != 1 else ''} of {self.n}, from the inertia of its LDL^T "
+                                           f"factorization): a stiffness matrix must be symmetric positive definite "
+                                           f"on the free DOFs", inertia)
+        if zero:
+            raise SingularSystemError(f"K is singular (a zero pivot in its Cholesky factorization): a body without "
+                                      f"enough Dirichlet conditions (rigid-body motions)?")
+
+    def checksum(self) -> str:
+        """SHA-256 (hex) of (n, m, K, N, T, f1, f2, friction, gap, rho): the identity of the system a
+        saved path or a checkpoint belongs to.  Cached; collective under MPI (K is hashed in global
+        row order on rank 0 and the digest broadcast), the same on every rank."""
+        if "checksum" not in self._cache:
+            self._cache["checksum"] = _checksum(self)
+        return self._cache["checksum"]
 
     def loads_numpy(self):
         """(f1, f2) as whole NumPy arrays, cached."""
@@ -300,6 +385,8 @@ class ContactSystem:
         n = K.shape[0]
         if K.shape != (n, n):
             raise InputError(f"K must be square, got shape {K.shape}")
+        if n == 0:
+            raise InputError("K is empty (0 x 0): the system needs at least one displacement DOF")
         m = N.shape[0]
         for name, A in (("N", N), ("T", T)):
             if A.shape != (m, n):
@@ -340,6 +427,50 @@ class ContactSystem:
         return f"ContactSystem(n={self.n}, m={self.m}, friction={self.friction!r}, rho={self.rho:.4g}{gap})"
 
 
+def check_alpha(alpha) -> float:
+    """The load parameter as a finite float (InputError otherwise)."""
+    try:
+        value = float(alpha)
+    except (TypeError, ValueError):
+        raise InputError(f"alpha must be a finite number, got {alpha!r}") from None
+    if not np.isfinite(value):
+        raise InputError(f"alpha must be a finite number, got {alpha!r}")
+    return value
+
+
+def _overflow_hint(name) -> str:
+    if name == "K":
+        return "; check E (Young's modulus far outside 1e-6 .. 1e20 in the model's units?)"
+    if name in ("f1", "f2"):
+        return "; the tractions or body forces are too large: rescale the units"
+    return ""
+
+
+def _checksum(system) -> str:
+    comm = system.comm
+    ai, aj, av = system.K.getValuesCSR()
+    local = (np.diff(np.asarray(ai)).astype(np.int64), np.asarray(aj, dtype=np.int64), np.asarray(av, dtype=float))
+    parts = comm.gather(local, root=0) if comm.Get_size() > 1 else [local]
+    digest = None
+    if comm.Get_rank() == 0:
+        h = hashlib.sha256(b"cfcontact-system-1")
+        h.update(np.asarray([system.n, system.m], dtype=np.int64).tobytes())
+        for k in range(3):  # row lengths, column indices, values of K, each in global row order
+            for part in parts:
+                h.update(np.ascontiguousarray(part[k]).tobytes())
+        N, T = system.contact_maps()
+        for A in (N, T):
+            A = sp.csr_matrix(A)
+            A.sort_indices()
+            for arr in (np.diff(A.indptr).astype(np.int64), A.indices.astype(np.int64), A.data.astype(float)):
+                h.update(np.ascontiguousarray(arr).tobytes())
+        for v in (*system.loads_numpy(), system.friction_vector, np.asarray(system.gap, dtype=float),
+                  np.asarray([system.rho])):
+            h.update(np.ascontiguousarray(v, dtype=float).tobytes())
+        digest = h.hexdigest()
+    return comm.bcast(digest, root=0) if comm.Get_size() > 1 else digest
+
+
 def _as_csr(name, A):
     try:
         if sp.issparse(A):
@@ -361,7 +492,11 @@ def _as_csr(name, A):
 
 
 def _check_friction(friction, m):
-    arr = np.asarray(friction, dtype=float)
+    try:
+        arr = np.asarray(friction, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"friction must be a number >= 0 or one number per contact node, got {friction!r}") \
+            from None
     if arr.ndim == 0:
         if not np.isfinite(arr) or arr < 0:
             raise InputError(f"friction coefficient F must be a finite number >= 0, got {float(arr)!r}")

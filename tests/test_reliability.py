@@ -1,0 +1,418 @@
+"""Reliability (issue #14): what a careless user meets in the first hour.
+
+JIT noise on a fresh form cache, interrupts at any moment (one line, exit 130, resumable work
+kept), kill -9 and stray temporary folders, the advisory lock of an output folder, size and
+range checks before any work, non-finite and extreme numbers, corrupted saved paths and
+checkpoints.  Each class is replayed here; the subprocess tests are marked slow."""
+
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from cfcontact import cli
+from cfcontact.path import SolutionPath
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+TINY = """
+title = "tiny"
+[geometry]
+kind = "two_blocks"
+nx = 6
+ny = 2
+[contact]
+friction = 1.5
+[output]
+plot = false
+render_panel = false
+"""
+
+
+def _env(**extra):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    env.update(extra)
+    return env
+
+
+def _write(folder, text, name="case.toml"):
+    fn = os.path.join(str(folder), name)
+    with open(fn, "w") as fh:
+        fh.write(text)
+    return fn
+
+
+def _cfcontact(*args, env=None, timeout=600, **kw):
+    return subprocess.run([sys.executable, "-m", "cfcontact", *args], capture_output=True, text=True,
+                          env=env or _env(), cwd=ROOT, timeout=timeout, **kw)
+
+
+# ------------------------------------------------------------------ 1. JIT noise
+@pytest.mark.slow
+def test_fresh_form_cache_prints_only_cfcontact_lines(tmp_path):
+    """An empty form cache (XDG_CACHE_HOME: dolfinx/FFCx keep compiled forms in $XDG_CACHE_HOME/fenics):
+    the JIT compiles the element and the forms, and neither distutils' log lines nor the compiler's
+    output reach the terminal, with or without -q."""
+    cache = tmp_path / "cache"
+    case = _write(tmp_path, TINY)
+    proc = _cfcontact("run", case, env=_env(XDG_CACHE_HOME=str(cache)))
+    assert proc.returncode == 0, proc.stderr
+    assert list((cache / "fenics").glob("libffcx_forms_*.so")), "the forms were not compiled in the fresh cache"
+    lines = (proc.stdout + proc.stderr).splitlines()
+    assert lines and all(ln.startswith("cfcontact") for ln in lines), lines
+    # -q on another fresh cache: nothing at all; a traction on a new tag compiles a new form, also quietly
+    case = _write(tmp_path, TINY + "[loads.f2]\nright1 = [1.0e6, 0.0]\n", "new_tag.toml")
+    proc = _cfcontact("run", case, "-q", env=_env(XDG_CACHE_HOME=str(tmp_path / "cache2")))
+    assert proc.returncode == 0 and proc.stdout == "" and proc.stderr == "", proc.stderr
+
+
+# ------------------------------------------------------------------ bad case files and flags
+GEO = '[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n'
+BAD_RUNS = [
+    # (label, case text, extra flags, words in the one message)
+    ("huge nx", '[geometry]\nkind = "two_blocks"\nnx = 1000000000\n', [], ["[geometry] nx = 1000000000", "DOFs"]),
+    ("too much memory", '[geometry]\nkind = "two_blocks"\nnx = 3000\nny = 1000\n', [],
+     ["[geometry] nx = 3000, ny = 1000", "GiB", "available", "--allow-large"]),
+    ("alpha_end 1e300", GEO + "[path]\nalpha_end = 1e300\n", [], ["alpha_end", "1e+06"]),
+    ("alpha_start -1e7", GEO + "[path]\nalpha_start = -1e7\n", [], ["alpha_start", "1e+06"]),
+    ("E tiny", GEO + "[material]\nE = 1e-300\n", [], ["[material] E", "too small", "units"]),
+    ("E huge", GEO + "[material]\nE = 1e308\n", [], ["[material] E", "too large", "units"]),
+    ("traction 1e308", GEO + "[loads.f1]\ntop1 = [1e308, -1e308]\n", [], ["f1", "overflow", "rescale"]),
+    ("stop-at-alpha nan", GEO, ["--stop-at-alpha", "nan"], ["--stop-at-alpha", "finite", "nan"]),
+    ("stop-at-alpha inf", GEO, ["--stop-at-alpha", "inf"], ["--stop-at-alpha", "inf"]),
+    ("checkpoint-every -5", GEO, ["--checkpoint-every", "-5"], ["--checkpoint-every", ">= 0", "-5"]),
+    ("time-limit 0", GEO, ["--time-limit", "0"], ["--time-limit", "> 0"]),
+    ("stop-after-folds 0", GEO, ["--stop-after-folds", "0"], ["--stop-after-folds", ">= 1"]),
+    ("stop-after-transitions x", GEO, ["--stop-after-transitions", "x"], ["--stop-after-transitions", "'x'"]),
+    ("unknown flag", GEO, ["--frobnicate"], ["--frobnicate"]),
+]
+
+
+@pytest.mark.parametrize("label,text,flags,words", BAD_RUNS, ids=[b[0] for b in BAD_RUNS])
+def test_bad_case_or_flag_exit_2_one_line(tmp_path, capsys, label, text, flags, words):
+    case = _write(tmp_path, text)
+    assert cli.main(["run", case, *flags]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(("cfcontact run: error:", "cfcontact: error:")), lines[0]
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # no output, no .partial, no lock left
+
+
+def test_allow_large_overrides_the_memory_estimate(tmp_path):
+    from cfcontact import case as case_file
+
+    case = case_file.load_case(_write(tmp_path, '[geometry]\nkind = "two_blocks"\nnx = 300\nny = 100\n'))
+    est = case_file.estimate_size(case)
+    assert est["n"] == 4 * 301 * 101 and est["m"] == 301
+    with pytest.raises(case_file.CaseError, match=r"nx = 300, ny = 100.*GiB.*1 GiB"):
+        case_file.check_size(case, available=2.0**30)
+    assert case_file.check_size(case, allow_large=True, available=2.0**30)["n"] == est["n"]
+    assert case_file.check_size(case, available=2.0**40)["memory"] < 2.0**40
+
+
+def test_other_command_line_mistakes(tmp_path, capsys):
+    folder = tmp_path / "folder.toml"
+    folder.mkdir()
+    assert cli.main(["run", str(folder)]) == 2
+    assert "is a folder, not a case file" in capsys.readouterr().err
+    case = _write(tmp_path, GEO)
+    assert cli.main(["run", case, "-o", os.path.join(case, "out")]) == 2
+    err = capsys.readouterr().err
+    assert "is a file, not a folder" in err and "Errno" not in err
+    for bad in (["render", str(tmp_path), "--alpha", "nan"], ["render", str(tmp_path), "--frames", "0"],
+                ["render", str(tmp_path), "--window-size", "1", "1"], ["plot", str(tmp_path), "--zoom", "0", "inf"],
+                ["export", str(tmp_path), "--alpha", "inf"]):
+        assert cli.main(bad) == 2, bad
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "error: argument" in err, err
+
+
+# ------------------------------------------------------------------ numbers (the API)
+def _system(K, f1=(-1.0, 0.0), f2=(1.0, 1.0), friction=0.3):
+    from cfcontact.system import ContactSystem
+
+    return ContactSystem.from_arrays(np.asarray(K, dtype=float), [[1.0, 0.0]], [[0.0, 1.0]], f1, f2, friction)
+
+
+def test_bad_numbers_in_the_api():
+    import cfcontact
+    from cfcontact.errors import InputError, NotPositiveDefiniteError, SingularSystemError
+    from cfcontact.system import ContactSystem
+
+    K = [[2.0, -1.0], [-1.0, 2.0]]
+    with pytest.raises(NotPositiveDefiniteError, match=r"K is not positive definite \(2 negative eigenvalues"):
+        cfcontact.trace_path(_system(-np.asarray(K)))
+    with pytest.raises(NotPositiveDefiniteError, match=r"1 negative eigenvalue of 2"):
+        cfcontact.trace_path(_system([[1.0, 2.0], [2.0, 1.0]]), method="exact")
+    with pytest.raises(SingularSystemError, match="K is singular") as info:
+        cfcontact.trace_path(_system([[1.0, -1.0], [-1.0, 1.0]]))
+    assert not isinstance(info.value, NotPositiveDefiniteError)
+    with pytest.raises(InputError, match="alpha must be a finite number"):
+        cfcontact.ssnm(_system(K), float("nan"))
+    with pytest.raises(InputError, match="K is empty"):
+        ContactSystem.from_arrays(np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), [], [], 0.3)
+    with pytest.raises(InputError, match="friction must be a number"):
+        _system(K, friction="x")
+    with pytest.raises(InputError, match="load vector f1 has entries up to 1e\\+308"):
+        _system(K, f1=(1e308, 0.0))
+    with pytest.raises(InputError, match="K has non-finite|K has entries up to"):
+        _system([[1e200, 0.0], [0.0, 1.0]])
+    with pytest.raises(InputError, match="overflows"):
+        _system(K, f1=(1e99, 0.0), f2=(-1e99, 0.0)).load(1e300)
+    with pytest.raises(InputError, match="alpha_end=1e\\+300"):
+        cfcontact.trace_path(_system(K), 0.0, 1e300)
+    assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
+
+
+# ------------------------------------------------------------------ corrupted saved paths and checkpoints
+@pytest.fixture(scope="module")
+def stopped(tmp_path_factory):
+    """A stopped run of TINY (its <out>.partial/ with a checkpoint) and a finished one: (case, partial, out)."""
+    d = tmp_path_factory.mktemp("stopped")
+    case = _write(d, TINY)
+    assert cli.main(["run", case, "-q", "--stop-after-transitions", "2", "-o", str(d / "stopped")]) == 3
+    assert cli.main(["run", case, "-q", "-o", str(d / "done")]) == 0
+    return case, str(d / "stopped.partial"), str(d / "done")
+
+
+def _npz_edit(fn, edit):
+    with np.load(fn) as z:
+        arrays = {k: z[k] for k in z.files}
+    edit(arrays)
+    np.savez(fn, **arrays)
+
+
+def _json_edit(fn, edit):
+    with open(fn) as fh:
+        data = json.load(fh)
+    edit(data)
+    with open(fn, "w") as fh:
+        json.dump(data, fh)
+
+
+def _truncate(fn, keep=0.5):
+    size = os.path.getsize(fn)
+    with open(fn, "r+b") as fh:
+        fh.truncate(int(size * keep))
+
+
+CORRUPTIONS = [
+    # (label, file under path/, how, words of the message)
+    ("path.json empty", "path.json", lambda fn: _truncate(fn, 0), ["path.json", "JSON"]),
+    ("path.json truncated", "path.json", lambda fn: _truncate(fn), ["path.json", "truncated"]),
+    ("path.json not an object", "path.json", lambda fn: open(fn, "w").write("[1, 2]"), ["path.json", "object"]),
+    ("path.json missing key", "path.json", lambda fn: _json_edit(fn, lambda d: d.pop("branches")),
+     ["path.json", "'branches'"]),
+    ("path.json wrong n", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(n=d["n"] + 2)),
+     ["fields.npz", "shape"]),
+    ("path.json bad sets", "path.json", lambda fn: _json_edit(fn, lambda d: d["branches"][0]["sets"].update(nu=[99])),
+     ["path.json", "branches[0].sets"]),
+    ("path.json bad transition", "path.json",
+     lambda fn: _json_edit(fn, lambda d: d["transitions"][0].update(to_branch=77)), ["path.json", "to_branch"]),
+    ("path.json nan rho", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(rho=float("nan"))),
+     ["path.json", "rho"]),
+    ("fields.npz empty", "fields.npz", lambda fn: _truncate(fn, 0), ["fields.npz", "not an .npz"]),
+    ("fields.npz truncated", "fields.npz", lambda fn: _truncate(fn), ["fields.npz", "truncated"]),
+    ("fields.npz missing", "fields.npz", os.remove, ["fields.npz", "missing"]),
+    ("fields.npz missing array", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.pop("ys")), ["'ys'", "missing"]),
+    ("fields.npz nan", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["ys"].__setitem__((0, 0), np.nan)),
+     ["'ys'", "non-finite"]),
+    ("fields.npz wrong shape", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.update(ys=a["ys"][:, :-1])),
+     ["'ys'", "shape"]),
+    ("fields.npz short alphas", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a.update(alphas=a["alphas"][:-1])),
+     ["fields.npz", "shape"]),
+    ("fields.npz bad csr", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["N_indices"].__setitem__(0, 10**6)),
+     ["fields.npz", "CSR"]),
+    ("fields.npz bad branch", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["point_branch"].__setitem__(0, 99)),
+     ["point_branch"]),
+    ("fields.npz pickled", "fields.npz", lambda fn: np.save(open(fn, "wb"), np.array([{}]), allow_pickle=True),
+     ["fields.npz"]),
+]
+
+
+@pytest.mark.parametrize("label,name,how,words", CORRUPTIONS, ids=[c[0] for c in CORRUPTIONS])
+def test_corrupted_saved_path_exit_2_naming_the_file(tmp_path, capsys, stopped, label, name, how, words):
+    """Every corruption of a saved path: info, plot and run --resume exit 2 with one message naming
+    the file and what is wrong (the finished run's path/ and the stopped run's checkpoint alike)."""
+    _, partial, done = stopped
+    out = tmp_path / "done"
+    shutil.copytree(done, out)
+    how(str(out / "path" / name))
+    for command in (["info", str(out)], ["plot", str(out), "-o", str(tmp_path / "p.png")]):
+        assert cli.main(command) == 2, command
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in err, err
+        for w in words:
+            assert w in lines[0], (w, lines[0])
+    case = _write(tmp_path, TINY)
+    shutil.copytree(partial, tmp_path / "case_out.partial")
+    how(str(tmp_path / "case_out.partial" / "checkpoint" / "path" / name))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "checkpoint" in err and "--force" in err, err
+    assert os.path.isdir(tmp_path / "case_out.partial" / "checkpoint")  # kept: the user decides
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+
+
+STATE_CORRUPTIONS = [
+    ("truncated", lambda fn: _truncate(fn), ["state.json", "truncated"]),
+    ("not a checkpoint", lambda fn: _json_edit(fn, lambda d: d.update(format="x")), ["not a cfcontact checkpoint"]),
+    ("missing physics", lambda fn: _json_edit(fn, lambda d: d.pop("physics")), ["state.json", "'physics'"]),
+    ("nan resume state", lambda fn: _json_edit(fn, lambda d: d["resume_state"].update(h=float("nan"))),
+     ["state.json", "h", "finite"]),
+    ("other checksum", lambda fn: _json_edit(fn, lambda d: d.update(system_checksum="0" * 64)),
+     ["different systems"]),
+]
+
+
+@pytest.mark.parametrize("label,how,words", STATE_CORRUPTIONS, ids=[c[0] for c in STATE_CORRUPTIONS])
+def test_corrupted_checkpoint_state_exit_2(tmp_path, capsys, stopped, label, how, words):
+    case = _write(tmp_path, TINY)
+    shutil.copytree(stopped[1], tmp_path / "case_out.partial")
+    how(str(tmp_path / "case_out.partial" / "checkpoint" / "state.json"))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def test_another_cases_checkpoint_is_refused(tmp_path, capsys, stopped):
+    """Another case's checkpoint with the same n and m (other loads, so another system) placed under
+    --resume, its physics rewritten to match: the system checksum refuses it."""
+    other = TINY + "[loads.f1]\ntop1 = [3.0e7, -1.0e8]\n"
+    case = _write(tmp_path, other)
+    shutil.copytree(stopped[1], tmp_path / "case_out.partial")
+    from cfcontact import case as case_file
+
+    now = case_file.physics(case_file.load_case(case))
+    _json_edit(str(tmp_path / "case_out.partial" / "checkpoint" / "state.json"), lambda d: d.update(physics=now))
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "belongs to another system" in err and "--force" in err, err
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
+    assert cli.main(["info", str(tmp_path / "case_out")]) == 0
+    assert f"system checksum {path.system_checksum}" in capsys.readouterr().out
+
+
+def test_kill_9_leftovers_are_cleaned_and_resume_never_points_back(tmp_path, capsys, stopped):
+    """What a kill -9 leaves: a <out>.partial/ without checkpoint (killed before the first one), or a
+    checkpoint with the temporary folders of a save and partial outputs beside it, and a stale lock
+    file (no live holder).  The next run cleans up; --resume without checkpoint says what to do."""
+    case = _write(tmp_path, TINY)
+    partial = tmp_path / "case_out.partial"
+    (partial / ".cfpath-x1").mkdir(parents=True)
+    (tmp_path / "case_out.lock").write_text('{"pid": 999999999}')
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "without --resume" in err and "--resume or" not in err, err
+    assert not partial.exists()
+    (partial / ".cfpath-x1").mkdir(parents=True)
+    assert cli.main(["run", case, "-q"]) == 0  # without --resume: the checkpoint-less folder is removed
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    # a checkpoint with leftovers beside and in it
+    shutil.rmtree(tmp_path / "case_out")
+    shutil.copytree(stopped[1], partial)
+    for name in (".checkpoint-new", ".cfpath-abc", "path.old-.cfpath-x"):
+        (partial / name).mkdir()
+    (partial / "path.png").write_bytes(b"half")
+    assert cli.main(["run", case, "-q"]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    assert not [n for n in os.listdir(tmp_path / "case_out") if n.startswith(".")]
+
+
+# ------------------------------------------------------------------ interrupts and concurrent runs
+PLOTTED = TINY.replace("plot = false", "plot = true")
+
+
+@pytest.mark.slow
+def test_interrupt_at_random_points_then_resume_equals_uninterrupted(tmp_path):
+    """SIGINT to ``python -m cfcontact run`` at random moments (import, validation, assembly,
+    tracing, the traced checkpoint, plotting, shutdown): exit 0 or 130, never a traceback, one
+    interrupt line; what is left resumes (or starts over) to the uninterrupted path."""
+    case = _write(tmp_path, PLOTTED)
+    t0 = time.monotonic()
+    proc = _cfcontact("run", case, "-q", "-o", str(tmp_path / "ref"))
+    wall = time.monotonic() - t0
+    assert proc.returncode == 0, proc.stderr
+    ref = SolutionPath.load(str(tmp_path / "ref" / "path"))
+    rng = random.Random(14)
+    for k in range(8):
+        out = tmp_path / f"out{k}"
+        delay = rng.uniform(0.05, 1.1 * wall)
+        p = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case, "-o", str(out)], env=_env(), cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        p.send_signal(signal.SIGINT)
+        stdout, stderr = p.communicate(timeout=600)
+        note = f"trial {k}, SIGINT after {delay:.2f} s of {wall:.2f} s: rc {p.returncode}\n{stdout}\n{stderr}"
+        assert p.returncode in (0, 130), note
+        assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, note
+        assert len([ln for ln in stderr.splitlines() if "interrupted" in ln or "stopping" in ln]) <= 2, note
+        assert not os.path.exists(str(out) + ".lock"), note
+        if p.returncode == 130 and os.path.isdir(str(out) + ".partial"):
+            proc = _cfcontact("run", case, "-q", "--resume", "-o", str(out))
+            assert proc.returncode == 0, note + proc.stderr
+        elif not os.path.isdir(out):
+            proc = _cfcontact("run", case, "-q", "-o", str(out))
+            assert proc.returncode == 0, note + proc.stderr
+        path = SolutionPath.load(str(out / "path"))
+        assert path.status == ref.status and len(path.transitions) == len(ref.transitions), note
+        np.testing.assert_array_equal(path.alphas, ref.alphas)
+        np.testing.assert_allclose(path.ys, ref.ys, rtol=0, atol=1e-12 * np.abs(ref.ys).max())
+        assert (out / "path.png").is_file() and not os.path.exists(str(out) + ".partial"), note
+
+
+@pytest.mark.slow
+def test_two_concurrent_runs_into_one_folder(tmp_path):
+    """A second run (even with --force) into a folder a live run holds is refused with exit 2 naming
+    the holder's PID; the first run completes undisturbed.  After the holder is killed (-9), its lock
+    is taken over."""
+    case_a = _write(tmp_path, TINY, "a.toml")
+    case_b = _write(tmp_path, TINY.replace("friction = 1.5", "friction = 0.5"), "b.toml")
+    out = str(tmp_path / "shared")
+    a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out], env=_env(), cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not os.path.exists(out + ".lock") and time.monotonic() < deadline:
+        time.sleep(0.01)
+    a.send_signal(signal.SIGSTOP)  # hold it inside its run
+    try:
+        for flags in ([], ["--force"], ["--resume"]):
+            proc = _cfcontact("run", case_b, "-q", "-o", out, *flags)
+            assert proc.returncode == 2, proc.stderr
+            assert f"process {a.pid}" in proc.stderr and "in use by another run" in proc.stderr, proc.stderr
+            assert len(proc.stderr.strip().splitlines()) == 1
+    finally:
+        a.send_signal(signal.SIGCONT)
+    assert a.wait(timeout=600) == 0, a.stderr.read()
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    assert summary["case_file"] == case_a and summary["status"] == "completed"
+    assert not os.path.exists(out + ".lock")
+    # a holder killed with -9: the kernel drops its lock, the next run takes the lock file over
+    a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out, "--force"], env=_env(),
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    while not os.path.exists(out + ".lock") and a.poll() is None:
+        time.sleep(0.01)
+    a.kill()
+    a.wait()
+    proc = _cfcontact("run", case_b, "-q", "-o", out, "--force")
+    assert proc.returncode == 0, proc.stderr
+    assert json.load(open(os.path.join(out, "summary.json")))["case_file"] == case_b
+    assert sorted(os.listdir(tmp_path)) == ["a.toml", "b.toml", "shared"]
