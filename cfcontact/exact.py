@@ -96,30 +96,49 @@ START_ENUMERATION_MAX_NODES = 8
 OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
 _A, _BP, _BM = 0, 1, 2
 
-# _CONS_SIGN[state, F == 0, indicator] = sign s of the constraint s * indicator >= 0 (0: none)
-_CONS_SIGN = np.zeros((4, 2, 3))
-for _st, _f0, _ind, _sg in ((OPEN, 0, _A, -1), (STICK, 0, _BP, -1), (STICK, 0, _BM, 1), (SLIP_P, 0, _A, 1),
-                            (SLIP_P, 0, _BP, 1), (SLIP_M, 0, _A, 1), (SLIP_M, 0, _BM, -1),
-                            (OPEN, 1, _A, -1), (SLIP_P, 1, _A, 1)):
-    _CONS_SIGN[_st, _f0, _ind] = _sg
-# _PIVOT[state, F == 0, indicator]: the state across the facet of that constraint (-1: an open
+# Node kinds: 0 = F > 0, 1 = F = 0 (open or tangentially free, "free" coded slip+), 2 = a node
+# without tangential unknown (its row of T vanishes, e.g. on a symmetry plane: open or closed with
+# lam_t = 0, "closed" coded stick).
+# _CONS_SIGN[state, kind, indicator] = sign s of the constraint s * indicator >= 0 (0: none)
+_CONS_SIGN = np.zeros((4, 3, 3))
+for _st, _k, _ind, _sg in ((OPEN, 0, _A, -1), (STICK, 0, _BP, -1), (STICK, 0, _BM, 1), (SLIP_P, 0, _A, 1),
+                           (SLIP_P, 0, _BP, 1), (SLIP_M, 0, _A, 1), (SLIP_M, 0, _BM, -1),
+                           (OPEN, 1, _A, -1), (SLIP_P, 1, _A, 1), (OPEN, 2, _A, -1), (STICK, 2, _A, 1)):
+    _CONS_SIGN[_st, _k, _ind] = _sg
+# _PIVOT[state, kind, indicator]: the state across the facet of that constraint (-1: an open
 # node closing with F > 0 slips in the direction of its T u; -2: no such constraint)
-_PIVOT = np.full((4, 2, 3), -2, dtype=np.int8)
-for _st, _f0, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0, _BM, SLIP_M),
-                            (SLIP_P, 0, _A, OPEN), (SLIP_P, 0, _BP, STICK), (SLIP_M, 0, _A, OPEN),
-                            (SLIP_M, 0, _BM, STICK), (OPEN, 1, _A, SLIP_P), (SLIP_P, 1, _A, OPEN)):
-    _PIVOT[_st, _f0, _ind] = _to
+_PIVOT = np.full((4, 3, 3), -2, dtype=np.int8)
+for _st, _k, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0, _BM, SLIP_M),
+                           (SLIP_P, 0, _A, OPEN), (SLIP_P, 0, _BP, STICK), (SLIP_M, 0, _A, OPEN),
+                           (SLIP_M, 0, _BM, STICK), (OPEN, 1, _A, SLIP_P), (SLIP_P, 1, _A, OPEN),
+                           (OPEN, 2, _A, STICK), (STICK, 2, _A, OPEN)):
+    _PIVOT[_st, _k, _ind] = _to
 # membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
 _SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
 
 
-def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
+def canonical_codes(sets: InactiveSets, friction, no_tangent=None) -> np.ndarray:
     """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices: an open
-    node is tangentially free, and a node with F = 0 is open or free (coded slip+; its stick state
-    gives the same solution when consistent, lam_t = 0)."""
+    node is tangentially free, a node with F = 0 is open or free (coded slip+; its stick state
+    gives the same solution when consistent, lam_t = 0), and a node without tangential unknown
+    (``no_tangent``) is open or closed (coded stick, lam_t = 0)."""
     F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
     codes = sets.state_codes().astype(np.int8)  # tp & tm -> 2 (slip+)
-    return np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes).astype(np.int8)
+    codes = np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes)
+    if no_tangent is not None:
+        codes = np.where((codes != OPEN) & np.asarray(no_tangent, dtype=bool), STICK, codes)
+    return codes.astype(np.int8)
+
+
+def _canon(system, sets) -> np.ndarray:
+    """:func:`canonical_codes` of sets of ``system``."""
+    return canonical_codes(sets, system.friction, system.no_tangent)
+
+
+def node_kinds(system) -> np.ndarray:
+    """Per node: 0 (F > 0), 1 (F = 0), 2 (no tangential unknown): the second index of the tables."""
+    return np.where(np.asarray(system.no_tangent, dtype=bool), 2,
+                    np.where(system.friction_vector == 0.0, 1, 0)).astype(np.intp)
 
 
 def sets_from_codes(codes) -> InactiveSets:
@@ -302,7 +321,7 @@ class _Context:
         self.lo, self.hi, self.rtol = lo, hi, rtol
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
-        self.F0_index = self.F0.astype(np.intp)
+        self.F0_index = node_kinds(system)  # the node kind of each node (second index of the tables)
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
         if hasattr(solver, "branch_data"):
@@ -561,11 +580,11 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
 def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
     """States of ``node`` whose (closed) constraints hold at the indicator values g_star (3m)."""
     m = ctx.m
-    f0 = int(ctx.F0_index[node])
+    kind = int(ctx.F0_index[node])
     g = (float(g_star[node]), float(g_star[m + node]), float(g_star[2 * m + node]))
     out = []
-    for st in ((OPEN, SLIP_P) if f0 else (OPEN, STICK, SLIP_P, SLIP_M)):
-        signs = _CONS_SIGN[st, f0]
+    for st in ((OPEN, STICK, SLIP_P, SLIP_M), (OPEN, SLIP_P), (OPEN, STICK))[kind]:
+        signs = _CONS_SIGN[st, kind]
         if all(signs[i] * g[i] >= -tol for i in range(3) if signs[i]):
             out.append(st)
     return out
@@ -837,9 +856,9 @@ class _Walk:
         return "point", path.add_point(self.branch, a_star)
 
     def point(self, index) -> PathPoint:
-        path = self.path
-        sol = Solution.from_y(self.ctx.system, path._ys[index], path._alphas[index], sets=self.ln.sets)
-        return PathPoint(index, path._alphas[index], self.branch.index, sol, path)
+        path, sets, system = self.path, self.ln.sets, self.ctx.system
+        return PathPoint(index, path._alphas[index], self.branch.index, path=path,
+                         make=lambda: Solution.from_y(system, path._ys[index], path._alphas[index], sets=sets))
 
     def run(self, callback=None) -> str:
         """Step to the end (or until ``callback`` stops the walk: "stopped by callback")."""
@@ -890,7 +909,7 @@ class ExactStepper(Stepper):
             except (KeyError, IndexError, TypeError, ValueError) as exc:
                 raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
             if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
-                    or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
+                    or not np.array_equal(_canon(system, branch.sets), codes):
                 raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
             tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
             if tie_rtol != options.tie_rtol:
@@ -903,7 +922,7 @@ class ExactStepper(Stepper):
             self.ctx.visited = visited
             self.path = path
             first = path.branches[0]
-            start_key = (_digest(canonical_codes(first.sets, system.friction).tobytes()), first.orientation)
+            start_key = (_digest(_canon(system, first.sets).tobytes()), first.orientation)
             self.walk = _Walk(self.ctx, path, self.ctx.line(codes, alpha), s, alpha, branch, n_trans0, start_key)
             path.status, path.resume_state = "running", None
             branch.alpha_exit = float("nan")
@@ -1010,7 +1029,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets):
     if start_sets is not None:
         if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
             raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
-        codes = canonical_codes(start_sets, system.friction)
+        codes = _canon(system, start_sets)
         ln = ctx.line(codes, alpha)
         if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
             raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha}: "
@@ -1026,7 +1045,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets):
                      "the all-open state (%d transitions)", alpha, transitions)
         if start_sets is None:
             start_sets, how = _enumeration_start(system, alpha, path), "enumeration"
-        codes = canonical_codes(start_sets, system.friction)
+        codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
 
@@ -1157,9 +1176,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
         ctx = _ctx
     stats0 = ctx.solver.stats.as_dict()
     a = float(alt["alpha"])
-    codes = canonical_codes(InactiveSets.from_dict(alt["sets"]), system.friction)
+    codes = _canon(system, InactiveSets.from_dict(alt["sets"]))
     from_b = path.branches[ev.branch]
-    oc = canonical_codes(from_b.sets, system.friction)
+    oc = _canon(system, from_b.sets)
     changes = [{"node": int(i), "set": None, "from": STATE_NAMES[int(oc[i])], "to": STATE_NAMES[int(codes[i])]}
                for i in np.flatnonzero(oc != codes)] or [{"node": -1, "set": None}]
     d = int(alt["orientation"])
@@ -1192,7 +1211,7 @@ def _follow_all(system, path, options, solver):
     span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
     ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
     for b in path.branches:
-        ctx.visited.setdefault(_digest(canonical_codes(b.sets, system.friction).tobytes()),
+        ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()),
                                (b.orientation, b.alpha_enter))
     i = 0
     while i < len(path.events):

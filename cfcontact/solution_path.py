@@ -50,15 +50,26 @@ FORMAT_VERSION = 2
 SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
 
 
-@dataclass
 class PathPoint:
-    """An accepted point of the path (what the callback sees)."""
+    """An accepted point of the path (what the callback sees): its index, alpha, branch and the
+    live path.  ``solution`` (a :class:`~cfcontact.ssnm.Solution`) is formed when first asked
+    for: a callback that reads only alpha and the path forms no displacement (on a lazy path that
+    would cost a solve with K per point)."""
 
-    index: int
-    alpha: float
-    branch: int
-    solution: Solution
-    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path
+    __slots__ = ("index", "alpha", "branch", "path", "_solution", "_make")
+
+    def __init__(self, index: int, alpha: float, branch: int, solution=None, path=None, make=None):
+        self.index, self.alpha, self.branch, self.path = int(index), float(alpha), int(branch), path
+        self._solution, self._make = solution, make
+
+    @property
+    def solution(self) -> Solution:
+        if self._solution is None and self._make is not None:
+            self._solution, self._make = self._make(), None
+        return self._solution
+
+    def __repr__(self):
+        return f"PathPoint(index={self.index}, alpha={self.alpha!r}, branch={self.branch})"
 
 
 @dataclass
