@@ -444,17 +444,18 @@ class CondensedSolver:
 
     # ------------------------------------------------------------ dense part
     def matrix(self, Z: InactiveSets) -> np.ndarray:
-        """M(Z) (2m x 2m) of the condensed DirNeu system."""
+        """M(Z) (2m x 2m) of the condensed DirNeu system (a node without tangential unknown has the
+        unit row lam_t = 0)."""
         m = self.m
         M = np.zeros((2 * m, 2 * m))
         idx = np.arange(m)
-        act_n, act_t = ~Z.nu, ~Z.it
+        act_n, act_t = ~Z.nu, ~Z.it & ~self.no_tangent
         M[:m][act_n] = self.S[:m][act_n]
         M[idx[Z.nu], idx[Z.nu]] = 1.0
         M[m:][act_t] = self.S[m:][act_t]
-        it = np.flatnonzero(Z.it)
+        it = np.flatnonzero(~act_t)
         M[m + it, m + it] = 1.0
-        sgn = Z.tp.astype(float) - Z.tm.astype(float)
+        sgn = (Z.tp.astype(float) - Z.tm.astype(float)) * ~self.no_tangent
         M[m + it, it] = -self.F[it] * sgn[it]
         return M
 
@@ -462,7 +463,7 @@ class CondensedSolver:
         m = self.m
         r = np.zeros(2 * m)
         r[:m] = np.where(Z.nu, 0.0, w[:m])
-        r[m:] = np.where(Z.it, 0.0, w[m:])
+        r[m:] = np.where(Z.it | self.no_tangent, 0.0, w[m:])
         return r
 
     def _factor(self, Z: InactiveSets):
@@ -488,9 +489,10 @@ class CondensedSolver:
         """(rows, closed, slip, coef) of the reduced system of the sets (nu, tp, tm), see :meth:`_factor`."""
         act_n = ~nu
         it = tp | tm
+        no_t = self.no_tangent  # nodes without tangential unknown: lam_t = 0 whatever the sets
         closed = act_n.nonzero()[0]
-        rows = np.concatenate([closed, self.m + (~it).nonzero()[0]])  # = the free unknowns
-        slip = (it & act_n).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
+        rows = np.concatenate([closed, self.m + (~it & ~no_t).nonzero()[0]])  # = the free unknowns
+        slip = (it & act_n & ~no_t).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
         coef = self.F[slip] * (tp[slip].astype(float) - tm[slip].astype(float))
         return rows, closed, slip, coef
 

@@ -629,7 +629,7 @@ def test_info_of_a_saved_path_reports_its_pairing(tmp_path, capsys):
     """A run's path: the pairing from the path (pairs, slave side, master, pairs without tangential
     unknown) and its case.toml (pairing, slave, search distance), and the gap the path stores; the
     excluded nodes are not stored with a path, and info says so.  summary.json has the same from the path alone.
-    (The half model's exact path: backend "auto" takes the full backend for its centre node.)"""
+    (The half model's exact path: its centre node has no tangential unknown.)"""
     case = _write(tmp_path, HALF_CYLINDER)
     assert cli.main(["run", case, "-q"]) == 0
     out = tmp_path / "case_out"

@@ -435,7 +435,9 @@ def test_exact_resume_equals_uninterrupted(tmp_path, system_name, alpha_start, a
                                        resume=_saved(part, tmp_path, f"p{k}"))
         assert_same_exact_path(resumed, ref)
         assert resumed.resume_state is None
-        assert resumed.stats["linear_solves"] >= ref.stats["linear_solves"]
+        # the resumed path's counters include the stopped part's (the backend, shared by the runs
+        # on this system, may have cached some load data meanwhile)
+        assert resumed.stats["dense_solves"] >= part.stats["dense_solves"] > 0
 
 
 def test_exact_resume_twice_and_budget(tmp_path):
