@@ -120,11 +120,14 @@ def test_example_cases_run(cases, name):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name,slave,transitions", [("cylinder", "contact2=20", 12), ("punch", "contact2=20", 1),
-                                                     ("nonmatching", "contact1=10", 7), ("obstacle", "contact1=10", 6),
+                                                     ("nonmatching", "contact1=10", 7), ("obstacle", "contact1=10", 11),
                                                      ("half_cylinder", "contact2=20", 12)])
 def test_example_contact_geometry_cases_run(cases, name, slave, transitions):
     """The example cases of the contact geometry run to the end without events (half_cylinder: the
-    seed method from the zero load, as many transitions as the full cylinder)."""
+    seed method from the zero load, as many transitions as the full cylinder).  obstacle.toml: the
+    nodes at 1 +- x change state 2e-11 to 6e-11 apart in alpha (the mesh is symmetric to 5e-12, the
+    gaps to 1e-12; the exact method does not merge roots its rounding separates): 11 transitions,
+    five pairs and the centre node."""
     import warnings
 
     case = str(cases / f"{name}.toml")
