@@ -952,10 +952,15 @@ class ExactStepper(Stepper):
     def _finish(self, status) -> SolutionPath:
         self.finished = True
         path = self.path
+        tree = self.opts.tree and status in ("completed", "closed_loop", "stuck", "cycling")
+        if tree:
+            _follow_all(self.system, path, self.opts, self.solver)
         if path.lazy and getattr(self.solver, "size", 1) > 1:
             path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
         path.status = status
         self._update_stats()
+        if tree:
+            path.stats["tree"] = True
         path.resume_state = self.walk.state() if status == "stopped by callback" else None
         log.info("exact path: %s", path)
         return path
@@ -1114,7 +1119,8 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         ignored.
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint` (the start,
         the entry of every branch, the end); a truthy return stops the run
-    tree : also follow every alternative of every branch point (see :func:`trace_tree`)
+    tree : also follow every alternative of every branch point (see :func:`trace_tree`; the same
+        as ``options.tree``)
 
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
     (bracket (alpha, alpha)), every change (``Transition.changes``) and, at degenerate points,
@@ -1127,12 +1133,11 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     ``homotopy_transitions``.
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
+    if tree:
+        overrides["tree"] = True
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
-    path = ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
+    return ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
                         orientation=orientation).run(callback)
-    if tree and path.status in ("completed", "closed_loop", "stuck", "cycling"):
-        _follow_all(system, path, opts, solver)
-    return path
 
 
 def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, **kwargs) -> SolutionPath:
@@ -1207,7 +1212,8 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
 
 
 def _follow_all(system, path, options, solver):
-    """Follow every alternative of every branch point of ``path`` (also those found on the way)."""
+    """Follow every alternative of every branch point of ``path`` (also those found on the way).
+    The sub-runs take no callback (a checkpoint of the main run is taken before)."""
     span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
     ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
     for b in path.branches:
@@ -1221,5 +1227,4 @@ def _follow_all(system, path, options, solver):
                 if not alt["chosen"] and str(k) not in ev.data.get("followed", {}):
                     follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
         i += 1
-    path.stats["tree"] = True
     return path
