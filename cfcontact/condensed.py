@@ -137,6 +137,7 @@ class CondensedSolver:
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
+        self._lu_extra: dict = {}  # key -> (lu, rows of S on the support, positions of slip nodes' lam_n)
         self._loads: list = []  # [(f, w)]
         #: wall times [s] of the set-up: "factorization" (KSP set-up of K), "condensation" (S)
         self.timings = {}
@@ -575,39 +576,68 @@ class CondensedSolver:
             lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
 
-    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False) -> tuple:
+    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False,
+                    plain: bool = False) -> tuple:
         """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
 
-        ``refine``: one step of iterative refinement (the residual of the reduced system, i.e. the
+        ``refine``: two steps of iterative refinement (the residual of the reduced system, i.e. the
         gaps w - S lam of its equation rows, solved with the same LU) and a third result: the
-        change it made to the indicators (3m x k), an estimate of their rounding error."""
+        change the second made to the indicators (3m x k), an estimate of their rounding error;
+        otherwise one step (none with ``plain``: rates and perturbation responses of the
+        intermediate branches of a degenerate point, which only order its pivots)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
             return self._updater.branch_data(W, codes, refine)
-        L = self.multipliers_many(None, W, key=key, codes=codes)
-        entry = self._lu[key]
-        support = entry[5]
+        entry = self._lu.get(key)
+        if entry is None:
+            entry = self._factor_codes(key, np.asarray(codes))
+        else:
+            self._lu.move_to_end(key)
+        lu, piv, rows, slip, coef, support = entry
+        extra = self._lu_extra.get(key)
+        if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
+            if len(self._lu_extra) > 2 * max(64, self.options.cache):
+                self._lu_extra.clear()
+            extra = (lu, self.S.take(support, axis=0), np.searchsorted(rows[:rows.size - (rows >= self.m).sum()],
+                                                                       slip))
+            self._lu_extra[key] = extra
+        _, Ssup, pos = extra
+        m, c = self.m, W.shape[1]
+        if not rows.size:
+            L = np.zeros((2 * m, c))
+            G = self._ind(L, W, np.zeros_like(W))
+            return (L, G, np.zeros_like(G)) if refine else (L, G)
+        Wr = W[rows]
+
+        def expand(x):  # free unknowns -> (lam_n, lam_t), and S times it
+            full = np.zeros((2 * m, c))
+            full[rows] = x
+            if slip.size:
+                full[m + slip] = coef[:, None] * x[pos]
+            return full, Ssup.T @ full[support]
+
+        L, SL = expand(_getrs(lu, piv, Wr, trans=1)[0])
+        steps = 2 if refine else (0 if plain else 1)  # refine twice: the second correction measures the error
+        for _ in range(steps):
+            D, SD = expand(_getrs(lu, piv, Wr - SL[rows], trans=1)[0])
+            L = L + D
+            SL = SL + SD
+        self.stats.dense_solves += (1 + steps) * c
+        G = self._ind(L, W, SL)
         if not refine:
-            return L, self.indicators(L, W, support=support)
-        lu, piv, rows, slip, coef, _ = entry
+            return L, G
+        return L, G, np.abs(self._ind(D, np.zeros_like(W), SD))
+
+    def _ind(self, lam, w, Slam):
+        """The indicators (a, bp, bm) stacked (3m x k) from lam, w and S lam."""
         m = self.m
-        Sr = self.S.take(rows, axis=0).take(support, axis=1)
-        zero = np.zeros_like(W)
-        for step in range(2):  # refine twice: the second correction measures the result's error
-            D = np.zeros_like(L)
-            if rows.size:
-                R = W.take(rows, axis=0) - Sr @ L.take(support, axis=0)
-                D[rows] = _getrs(lu, piv, R, trans=1)[0]
-                if slip.size:
-                    D[m + slip] = coef[:, None] * D[slip]
-                self.stats.dense_solves += W.shape[1]
-            L += D
-        G = self.indicators(L, W, support=support)
-        Eg = np.abs(self.indicators(D, zero, support=support))
-        return L, G, Eg
+        g = lam + self.system.rho * (w - Slam)
+        F_lam_n = self.F[:, None] * lam[:m]
+        b = g[m:]
+        return np.concatenate((g[:m], b - F_lam_n, b + F_lam_n))
 
     @property
     def use_updates(self) -> bool:

@@ -87,8 +87,13 @@ PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
 #: cross-checked by enumerating the nodes' admissible states (all continuations, branch points).
 ENUMERATION_CHECK_NODES = 2
+#: Degenerate points crossing at most this many nodes are also crossed by the opposite
+#: perturbation, which finds a second continuation where there is one (a branch point).
+ALTERNATIVES_MAX_NODES = 6
 #: Kept for compatibility (the number of state combinations the enumeration cross-check tries).
 MAX_CANDIDATES = 4 ** ENUMERATION_CHECK_NODES
+#: Iterations of SSNM (in the multipliers, from 0) before the exact method starts by its homotopy.
+START_SSNM_ITERATIONS = 25
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -176,7 +181,7 @@ class _Line:
     ``tol_v`` and ``tol_s``: what counts as zero for a value at alpha_ref and for a rate."""
 
     __slots__ = ("codes", "key", "alpha", "lam", "dlam", "g", "dg", "cidx", "csgn", "cnode", "c", "dc",
-                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source")
+                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex")
 
     def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
                  source=None, eg=None):
@@ -199,6 +204,7 @@ class _Line:
             self.tol_v = np.full(self.cidx.size, self.ind_tv)
             self.tol_s = np.full(self.cidx.size, self.ind_ts)
         self.P = None  # indicator responses to the perturbation loads (3m x J), when needed
+        self.vertex = False  # an intermediate branch of a degenerate point (Context.vertex_line)
         self._sets = None
         self._Y = None  # (Y_ref, dY) with u, when formed
         self._full = full
@@ -266,6 +272,11 @@ class _CondensedData:
 
         return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
 
+    def rates(self, codes, key):
+        """(lam', g'): the rates of the branch of ``codes`` (one column: w2 - w1)."""
+        L, G = self.solver.branch_data(self.dw[:, None], key, codes, plain=True)
+        return L[:, 0], G[:, 0]
+
     def perturbation(self, line, E_loads):
         """Indicator responses (3m x J) of the branch to the perturbation loads."""
         if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
@@ -273,7 +284,7 @@ class _CondensedData:
             zero = solver.load_data_many([np.zeros(solver.n)])[:, 0]  # -(g; 0) when the system has a gap
             self.WE = solver.load_data_many([E_loads[:, j] for j in range(E_loads.shape[1])]) - zero[:, None]
         WE = self.WE[:, :E_loads.shape[1]]
-        _, G = self.solver.branch_data(WE, line.key, line.codes)
+        _, G = self.solver.branch_data(WE, line.key, line.codes, plain=line.vertex)
         return G
 
 
@@ -350,6 +361,32 @@ class _Context:
         ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg)
         if len(self._lines) > 64:
             self._lines.clear()
+        self._lines[ck] = ln
+        return ln
+
+    def vertex_line(self, codes, alpha, at: _Line) -> _Line:
+        """The branch of ``codes`` through the point of the branch ``at`` (referenced at alpha): an
+        intermediate branch of a degenerate point.  Its indicators there are those of the point
+        (they depend on y only), so only its rates are solved for (condensed backend; the full
+        backend forms a line as usual).  Not for the path: the branch that leaves the point is
+        formed by :meth:`line`."""
+        if not self.condensed:
+            return self.line(codes, alpha)
+        codes = np.asarray(codes, dtype=np.int8)
+        key = codes.tobytes()
+        ck = (key, float(alpha), "vertex")
+        ln = self._lines.get(ck)
+        if ln is not None:
+            return ln
+        dlam, dg = self.data.rates(codes, b"exact:" + key)
+        ln = _Line(codes, b"exact:" + key, alpha, at.lam, dlam, at.g, dg, at.scale, 0.0, self.rtol, self.F0_index,
+                   None, at.source)
+        ln.ind_tv, ln.ind_ts = at.ind_tv, at.ind_ts  # the point's own precision, the rates' of the point's branch
+        ln.tol_v = np.broadcast_to(ln.ind_tv, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_tv) else np.full(
+            ln.cidx.size, ln.ind_tv)
+        ln.tol_s = np.broadcast_to(ln.ind_ts, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_ts) else np.full(
+            ln.cidx.size, ln.ind_ts)
+        ln.vertex = True
         self._lines[ck] = ln
         return ln
 
@@ -491,6 +528,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         return lambda J: -(sign * ctx.perturbation_rows(line, J)[e]) / line.dc[e]
 
     delta = offset_leaving(cur, k)  # offset of the vertex we are at, as a function of J
+    first = None  # the first branch across the point, formed in full: the point's values
     repair = False  # is k a constant constraint that is negative in the perturbation (not a root)?
     for _ in range(max(64, 8 * m)):
         node = int(cur.cnode[k])
@@ -516,7 +554,9 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         codes = cur.codes.copy()
         codes[node] = new
         try:
-            nxt = ctx.line(codes, a_star)
+            nxt = ctx.line(codes, a_star) if first is None else ctx.vertex_line(codes, a_star, first)
+            if first is None:
+                first = nxt
         except SingularSystemError as exc:
             raise _Unresolved("singular", f"the branch across the facet is singular: {exc}",
                               {"node": node, "from": STATE_NAMES[old], "to": STATE_NAMES[new]}) from None
@@ -545,7 +585,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         rate = d * nxt.dc
         cand = zero & (rate <= nxt.tol_s)
         if not cand.any():
-            return nxt, d, pivots, e
+            return _full_exit(ctx, nxt, a_star), d, pivots, e
         dec = cand & (rate < -nxt.tol_s)
         flat = (cand & ~dec).nonzero()[0]
         repair = False
@@ -562,7 +602,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
                 continue
         D = dec.nonzero()[0]
         if not D.size:
-            return nxt, d, pivots, e
+            return _full_exit(ctx, nxt, a_star), d, pivots, e
         if D.size == 1:
             k = int(D[0])
         else:
@@ -575,6 +615,11 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
             k = int(D[_lexmin_with_more_columns(ctx, rows, D.size)])
         cur = nxt
     raise _Unresolved("degenerate", f"more than {max(64, 8 * m)} pivots at one point", {"pivots": pivots})
+
+
+def _full_exit(ctx, ln: _Line, alpha) -> _Line:
+    """The branch leaving a degenerate point, formed in full (an intermediate one has only rates)."""
+    return ctx.line(ln.codes, alpha) if ln.vertex else ln
 
 
 def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
@@ -757,11 +802,13 @@ def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
             out.append((c, dd))
 
     # the opposite perturbation pairs the rays of the point differently; it applies when no
-    # constraint of ln vanishes identically along it (those are positive only under +eps)
+    # constraint of ln vanishes identically along it (those are positive only under +eps), and is
+    # tried at points of at most ALTERNATIVES_MAX_NODES nodes (it costs as much as the point)
     vals = ln.values(a_star)
     zero = np.abs(vals) <= ln.tol_v + abs(a_star - ln.alpha) * ln.tol_s
     zero[tied] = False
-    if not zero.any():
+    crossed = {p["node"] for p in pivots}
+    if not zero.any() and len(crossed) <= ALTERNATIVES_MAX_NODES:
         try:
             c2, d2, _, _ = _resolve(ctx, ln, s, a_star, tied, sign=-1)
             add(c2, d2)
@@ -985,10 +1032,12 @@ class ExactStepper(Stepper):
 
 # ---------------------------------------------------------------------- start
 def _ssnm_start(ctx: _Context, alpha, y0):
-    """Sets of SSNM's solution at alpha, or None when SSNM does not converge."""
+    """Sets of SSNM's solution at alpha, or None when SSNM does not converge.  With the condensed
+    backend SSNM gets at most START_SSNM_ITERATIONS iterations (it converges in a few when it
+    does; at large F it can wander): the homotopy start reaches the solution by rule."""
     system, solver, opts = ctx.system, ctx.solver, ctx.opts
     if y0 is None and hasattr(solver, "ssnm_sets"):
-        return solver.ssnm_sets(system.load(alpha), opts.tol, opts.max_iter)
+        return solver.ssnm_sets(system.load(alpha), opts.tol, min(opts.max_iter, START_SSNM_ITERATIONS))
     try:
         return start_point(system, alpha, y0, opts, solver).sets
     except ConvergenceError:
