@@ -235,13 +235,19 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
         k, _, v = kv.partition("=")
         PETSc.Options()[k.lstrip("-")] = v
     PETSc.Log.begin()
+    from mpi4py import MPI
+
     import cfcontact
     from cfcontact.condensed import CondensedSolver
 
-    res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly"}
+    comm = MPI.COMM_WORLD
+    res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly",
+           "ranks": comm.size}
 
-    def dump():  # partial results survive a crash / kill
-        print("BENCH-PARTIAL " + json.dumps(res), flush=True)
+    def dump():  # partial results survive a crash / kill (rank 0 writes; peak memory of every rank)
+        res["peak_rss_gib_per_rank"] = comm.allgather(peak_rss_gib())
+        if comm.rank == 0:
+            print("BENCH-PARTIAL " + json.dumps(res), flush=True)
 
     t0 = time.perf_counter()
     system = build_blocks(friction, nx=nx, ny=ny)
@@ -285,6 +291,7 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
                branches=len(path.branches), points=len(path.alphas), K_factorizations=st["factorizations"],
                linear_solves=st["linear_solves"], linear_solves_path=st["linear_solves"] - solves0,
                dense_factorizations=st["dense_factorizations"], dense_solves=st["dense_solves"],
+               dense_updates=st.get("dense_updates", 0),
                profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify",
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message} for e in path.events][:20])
     dump()
@@ -300,13 +307,18 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
         res["verified_points"] = P if idx is None else int(len(idx))
     total = res["assembly_time"] + t_fact + t_cond + res["setup_other_time"] + t_path
     base = res["assembly_time"] + t_fact
-    res.update(total_time=total, ratio=total / base, peak_rss_gib=peak_rss_gib(), stage="done")
+    res.update(total_time=total, ratio=total / base, peak_rss_gib=peak_rss_gib(),
+               peak_rss_gib_per_rank=comm.allgather(peak_rss_gib()),
+               transition_alphas=[t.alpha for t in path.transitions],
+               transition_keys=[[t.node, t.set, t.kind] for t in path.transitions], stage="done")
     return res
 
 
-def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
+def run_size(n_target, friction, timeout, petsc_options, log=print, ranks=1) -> dict:
     nx, ny, n_est = mesh_for(n_target)
     cmd = [sys.executable, "-m", "cfcontact.bench", "--worker-b", f"{nx},{ny},{friction!r}"]
+    if ranks > 1:
+        cmd = ["mpirun", "--allow-run-as-root", "-n", str(int(ranks))] + cmd
     for o in petsc_options:
         cmd += ["--petsc-option", o]
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
@@ -333,18 +345,34 @@ def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
     return res
 
 
+def compare_ranks(serial, parallel) -> dict:
+    """Does the parallel run give the serial transitions (same sequence, alpha within 1e-9 relative)?"""
+    ks, kp = serial.get("transition_keys"), parallel.get("transition_keys")
+    if ks is None or kp is None:
+        return {"same_as_serial": None}
+    same = ks == kp
+    d = max((abs(a - b) / max(abs(a), 1e-300) for a, b in zip(serial["transition_alphas"],
+                                                              parallel["transition_alphas"])), default=0.0)
+    return {"same_as_serial": bool(same and d <= 1e-9), "max_alpha_rel_difference": d}
+
+
 def table_b(rows) -> str:
-    head = (f"{'n':>8} {'m':>4} {'assembly':>9} {'factor K':>9} {'condense':>9} {'path':>9} {'total':>9} "
-            f"{'ratio':>6} {'trans.':>6} {'dense f.':>8} {'peak GiB':>8} {'residual':>9} {'status':>10}")
+    head = (f"{'n':>8} {'m':>4} {'ranks':>5} {'assembly':>9} {'factor K':>9} {'condense':>9} {'path':>9} "
+            f"{'total':>9} {'ratio':>6} {'trans.':>6} {'dense f.':>8} {'updates':>7} {'peak GiB':>8} {'residual':>9} "
+            f"{'status':>10}")
     lines = [head, "-" * len(head)]
     f = lambda r, k, w=9, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
     for r in rows:
         status = r.get("status") or f"FAIL:{r.get('failed_in_stage')}"
-        lines.append(f"{r.get('n', r.get('n_target')):>8} {r.get('m', r.get('nx')):>4} {f(r, 'assembly_time')} "
-                     f"{f(r, 'factorization_time')} {f(r, 'condensation_time')} {f(r, 'path_time')} "
-                     f"{f(r, 'total_time')} {f(r, 'ratio', 6, 1)} {r.get('transitions', '-'):>6} "
-                     f"{r.get('dense_factorizations', '-'):>8} {f(r, 'peak_rss_gib', 8, 2)} "
-                     f"{r.get('worst_residual', float('nan')):>9.1e} {status:>10}")
+        per_rank = r.get("peak_rss_gib_per_rank")
+        peak = max(per_rank) if per_rank else r.get("peak_rss_gib")
+        same = {True: " =serial", False: " !=serial"}.get(r.get("same_as_serial"), "")
+        lines.append(f"{r.get('n', r.get('n_target')):>8} {r.get('m', r.get('nx')):>4} {r.get('ranks', 1):>5} "
+                     f"{f(r, 'assembly_time')} {f(r, 'factorization_time')} {f(r, 'condensation_time')} "
+                     f"{f(r, 'path_time')} {f(r, 'total_time')} {f(r, 'ratio', 6, 1)} {r.get('transitions', '-'):>6} "
+                     f"{r.get('dense_factorizations', '-'):>8} {r.get('dense_updates', '-'):>7} "
+                     f"{peak if isinstance(peak, (int, float)) else float('nan'):>8.2f} "
+                     f"{r.get('worst_residual', float('nan')):>9.1e} {status:>10}{same}")
     return "\n".join(lines)
 
 
@@ -366,6 +394,8 @@ def add_arguments(ap):
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
                                                    "(default 1; --quick: 0)")
     ap.add_argument("--timeout", type=float, default=4 * 3600.0, help="per-size time limit of Part B [s]")
+    ap.add_argument("--mpi", type=int, default=1, help="Part B: also run every size under mpirun -n MPI "
+                                                       "(and compare its transitions with the serial run)")
     ap.add_argument("--petsc-option", action="append", default=[],
                     help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
     return ap
@@ -423,9 +453,17 @@ def run(args, argv_text="") -> int:
         F = max(dm.DEMO_FRICTIONS)
         print(f"Part B: exact method, condensed backend, F = {F:g}", flush=True)
         result["part_b"] = []
+        ranks = int(getattr(args, "mpi", 1) or 1)
+        if ranks < 1:
+            raise InputError(f"--mpi must be >= 1, got {ranks}")
         for s in sizes:
             result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
             save()
+            if ranks > 1:
+                row = run_size(s, F, args.timeout, args.petsc_option, ranks=ranks)
+                row.update(compare_ranks(result["part_b"][-1], row))
+                result["part_b"].append(row)
+                save()
         print(table_b(result["part_b"]), flush=True)
         print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
     if "C" in part or "D" in part:
@@ -457,7 +495,10 @@ def main(argv=None):
     if args.worker_b:
         nx, ny, F = args.worker_b.split(",")
         res = worker_b(int(nx), int(ny), float(F), args.petsc_option)
-        print("BENCH-RESULT " + json.dumps(res), flush=True)
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.rank == 0:
+            print("BENCH-RESULT " + json.dumps(res), flush=True)
         return 0
     try:
         return run(args, " ".join(["cfcontact.bench"] + list(sys.argv[1:] if argv is None else argv)))
