@@ -602,11 +602,12 @@ class CondensedSolver:
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
 
-        ``refine``: two steps of iterative refinement (the residual of the reduced system, i.e. the
-        gaps w - S lam of its equation rows, solved with the same LU) and a third result: the
-        change the second made to the indicators (3m x k), an estimate of their rounding error;
-        otherwise one step (none with ``plain``: rates and perturbation responses of the
-        intermediate branches of a degenerate point, which only order its pivots)."""
+        One step of iterative refinement (the residual of the reduced system, i.e. the gaps w - S
+        lam of its equation rows, solved with the same LU), none with ``plain`` (rates and
+        perturbation responses of the intermediate branches of a degenerate point, which only order
+        its pivots).  ``refine``: a third result, the change the refinement made to the indicators
+        (3m x k), an estimate of their rounding error (with updates: the change of the last of their
+        refinement steps)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
@@ -640,7 +641,9 @@ class CondensedSolver:
             return full, Ssup.T @ full[support]
 
         L, SL = expand(_getrs(lu, piv, Wr, trans=1)[0])
-        steps = 2 if refine else (0 if plain else 1)  # refine twice: the second correction measures the error
+        # one step of refinement (its correction measures the rounding error of a fresh factorization's
+        # solution); none for the intermediate branches of a degenerate point (``plain``)
+        steps = 0 if plain else 1
         for _ in range(steps):
             D, SD = expand(_getrs(lu, piv, Wr - SL[rows], trans=1)[0])
             L = L + D
