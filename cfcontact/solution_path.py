@@ -180,6 +180,10 @@ class _Points(list):
 class SolutionPath:
     """The traced solution path: points, branches, transitions, and exact branch evaluation."""
 
+    #: The ``format`` of a saved path of this class (:meth:`load` reads only its own; a path over
+    #: another parameter, :class:`cfcontact.friction.FrictionPath`, has its own).
+    FORMAT = "cfcontact-path"
+
     def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
                  geometry: Optional[ContactGeometry] = None, gap=None):
         self.n, self.m = int(n), int(m)
@@ -558,7 +562,7 @@ class SolutionPath:
         os.makedirs(parent, exist_ok=True)
         tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
         try:
-            meta = {"format": "cfcontact-path", "version": FORMAT_VERSION, "n": self.n, "m": self.m,
+            meta = {"format": self.FORMAT, "version": FORMAT_VERSION, "n": self.n, "m": self.m,
                     "rho": self.rho, "method": self.method, "alpha_start": self.alpha_start,
                     "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
                     "stats": self.stats, "branches": [b.to_dict() for b in self.branches],
@@ -571,10 +575,7 @@ class SolutionPath:
                       "friction": np.asarray(self.friction, dtype=float), "gap": self.gap,
                       "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
                       "T_data": self.T.data, "T_indices": self.T.indices, "T_indptr": self.T.indptr}
-            if self.branches:
-                arrays["alpha_ref"] = np.array([self._Y[b.index][0] for b in self.branches])
-                arrays["Y_ref"] = np.stack([self._Y[b.index][1] for b in self.branches])
-                arrays["dY"] = np.stack([self._Y[b.index][2] for b in self.branches])
+            arrays.update(self._branch_arrays())
             if self.geometry is not None:
                 arrays.update({"geometry_" + k: v for k, v in self.geometry.to_dict().items()})
             np.savez_compressed(os.path.join(tmp, "fields.npz"), **arrays)
@@ -590,6 +591,23 @@ class SolutionPath:
             raise
         return path
 
+    def _branch_arrays(self) -> dict:
+        """The branches' arrays of a save (:meth:`save` has formed every branch): the reference form."""
+        if not self.branches:
+            return {}
+        return {"alpha_ref": np.array([self._Y[b.index][0] for b in self.branches]),
+                "Y_ref": np.stack([self._Y[b.index][1] for b in self.branches]),
+                "dY": np.stack([self._Y[b.index][2] for b in self.branches])}
+
+    def _set_branch_arrays(self, arrays):
+        """The branches of a loaded path from the arrays :meth:`_branch_arrays` saved."""
+        for b in self.branches:
+            if "Y_ref" in arrays:
+                self._Y[b.index] = (float(arrays["alpha_ref"][b.index]), arrays["Y_ref"][b.index],
+                                    arrays["dY"][b.index])
+            else:  # version 1: the points at alpha = 0 and 1
+                self._Y[b.index] = (0.0, arrays["Y1"][b.index], arrays["Y2"][b.index] - arrays["Y1"][b.index])
+
     @classmethod
     def load(cls, path) -> "SolutionPath":
         """Read a path written by :meth:`save`."""
@@ -599,7 +617,7 @@ class SolutionPath:
             raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
         with open(jpath) as fh:
             meta = json.load(fh)
-        if meta.get("format") != "cfcontact-path" or meta.get("version") not in (1, FORMAT_VERSION):
+        if meta.get("format") != cls.FORMAT or meta.get("version") not in (1, FORMAT_VERSION):
             raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
         with np.load(os.path.join(path, "fields.npz")) as z:
             arrays = {k: z[k] for k in z.files}
@@ -619,11 +637,7 @@ class SolutionPath:
         p._ys = _Points(p, [ys[i] for i in range(ys.shape[0])])
         p._point_branch = [int(b) for b in arrays["point_branch"]]
         p.branches = [Branch.from_dict(d) for d in meta["branches"]]
-        for b in p.branches:
-            if "Y_ref" in arrays:
-                p._Y[b.index] = (float(arrays["alpha_ref"][b.index]), arrays["Y_ref"][b.index], arrays["dY"][b.index])
-            else:  # version 1: the points at alpha = 0 and 1
-                p._Y[b.index] = (0.0, arrays["Y1"][b.index], arrays["Y2"][b.index] - arrays["Y1"][b.index])
+        p._set_branch_arrays(arrays)
         p.transitions = [Transition.from_dict(d) for d in meta["transitions"]]
         p.events = [PathEvent(**d) for d in meta["events"]]
         p.status = meta["status"]
