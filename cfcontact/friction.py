@@ -66,6 +66,9 @@ __all__ = ["trace_friction_path", "FrictionPath", "FrictionStepper", "SeedFricti
            "friction_system", "worst_residual_friction", "FRICTION_METHODS"]
 
 FRICTION_METHODS = ("exact", "seed")
+#: A root of the constraint a branch was entered by within this (relative) of the entry is the
+#: entry itself seen from the new branch (the two sides locate one root to ~1e-12 relative).
+ENTRY_RTOL = 1e-9
 
 
 def friction_system(system, F: float, pattern=None):
@@ -179,6 +182,9 @@ class FrictionPath(SolutionPath):
 
     def summary(self) -> dict:
         return {**super().summary(), "parameter": "friction", "load_alpha": self.load_alpha}
+
+    def __repr__(self):
+        return "Friction" + super().__repr__() + f"[alpha={self.load_alpha:g}]"
 
     # ------------------------------------------------------------- save / load
     def _branch_arrays(self) -> dict:
@@ -405,6 +411,7 @@ class FrictionStepper(Stepper):
             path.status, path.resume_state = "running", None
             self.branch.alpha_exit = float("nan")
             self._pending_index = None
+            self.at_entry = set(int(j) for j in state.get("entry_zero", []))
 
     # ------------------------------------------------------------- walk
     def _leave_start(self, codes, F, s):
@@ -424,13 +431,23 @@ class FrictionStepper(Stepper):
         ctx.stats["start_pivots"] = len(pivots)
         return nxt.codes.copy(), d
 
-    def _enter(self, codes, s, F, origin, parent):
+    def _enter(self, codes, s, F, origin, parent, e_in=-1):
         rb = self.ctx.data.branch(codes)
         self.branch = self.path.add_friction_branch(sets_from_codes(codes), s, rb.affine_in_mu(self.ctx.data.w),
                                                     self.solver, origin=origin, parent=parent, F_enter=F)
         self.codes, self.s, self.F = np.asarray(codes, dtype=np.int8), s, F
+        self._entry_zero(e_in)
         self.ctx.visited.setdefault((_digest(self.codes.tobytes()), s), []).append(F)
         return self.path.add_point(self.branch, F)
+
+    def _entry_zero(self, e_in=-1):
+        """The constraints vanishing at the entry of the current branch (their roots there are the
+        entry itself, located by the two sides to ~1e-12 relative only)."""
+        ln = self.ctx.line(self.codes, self.F)
+        zero = np.abs(ln.c) <= ln.tol_v
+        if e_in >= 0:
+            zero[e_in] = True
+        self.at_entry = set(np.flatnonzero(zero).tolist())
 
     def _exit(self):
         """(F*, position of the vanishing constraint) of the first root in the direction of travel,
@@ -442,9 +459,9 @@ class FrictionStepper(Stepper):
         scale = max(abs(F0), abs(bound), 1.0)
         W = ctx.data.W
         cands = []
-        for j in range(rb.cidx.size):
-            for r in rb.pencil_roots(W, [rb.cidx[j]], [rb.csgn[j]], lo, hi):
-                cands.append((s * (r - F0), float(r), j))
+        roots = rb.pencil_roots_many(W, rb.cidx[:, None], rb.csgn[:, None], lo, hi, sigma=0.5 * (lo + hi))
+        for j, rs in enumerate(roots):
+            cands.extend((s * (r - F0), float(r), j) for r in rs)
         poles = [(s * (r - F0), float(r), -1) for r in rb.poles(lo, hi)]
         ctx.stats["root_candidates"] += len(cands)
         cands.sort()
@@ -460,7 +477,7 @@ class FrictionStepper(Stepper):
             if res is None:
                 continue
             root = res[0]
-            if s * (root - F0) <= tiny:
+            if s * (root - F0) <= (ENTRY_RTOL * scale if j in self.at_entry else tiny):
                 continue  # the root the branch was entered by (or one behind it)
             if c(F0 + 0.5 * (root - F0)) < 0:
                 continue  # the constraint does not decrease through this root (it was negative before)
@@ -505,7 +522,7 @@ class FrictionStepper(Stepper):
         zero[j] = True
         tied = zero.nonzero()[0]
         try:
-            nxt, d, pivots, _ = _resolve(ctx, ln, s, F_star, tied)
+            nxt, d, pivots, e_in = _resolve(ctx, ln, s, F_star, tied)
         except _Unresolved as exc:
             self.branch.alpha_exit = F_star
             path.add_point(self.branch, F_star)
@@ -542,13 +559,13 @@ class FrictionStepper(Stepper):
             return None
         path.transitions.append(tr)
         log.info("F=%.12g %s transition: %s", F_star, tr.kind, changes)
-        return self._enter(nxt.codes.copy(), d, F_star, tr.index, self.branch.index)
+        return self._enter(nxt.codes.copy(), d, F_star, tr.index, self.branch.index, e_in)
 
     # ------------------------------------------------------------- stepper interface
     @property
     def resume_state(self) -> dict:
         return {"branch": int(self.branch.index), "codes": [int(c) for c in self.codes], "orientation": int(self.s),
-                "F": float(self.F), "transitions0": int(self.n_trans0),
+                "F": float(self.F), "transitions0": int(self.n_trans0), "entry_zero": sorted(self.at_entry),
                 "visited": [[k.hex(), int(sg), float(F)] for (k, sg), Fs in self.ctx.visited.items() for F in Fs]}
 
     def point(self, index: int) -> PathPoint:

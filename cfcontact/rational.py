@@ -108,6 +108,12 @@ class RationalBranch:
         self._wood: dict = {}
         self._chol = None
 
+    def position(self, node: int, ind: int) -> int:
+        """Index in the constraint list of the constraint of ``node`` on indicator ``ind`` (0 a,
+        1 bp, 2 bm), or -1."""
+        j = np.flatnonzero(self.cidx == ind * self.m + node)
+        return int(j[0]) if j.size else -1
+
     @property
     def k(self) -> int:
         return self.rows.size
@@ -245,6 +251,48 @@ class RationalBranch:
         s = np.maximum(np.abs(A).max(axis=1), np.abs(B).max(axis=1))
         s[s == 0] = 1.0
         return _real_eigs(A / s[:, None], -B / s[:, None], lo, hi)
+
+    def pencil_roots_many(self, W, flats, signs, lo=-math.inf, hi=math.inf, sigma=0.0) -> list:
+        """:meth:`pencil_roots` for many constraint sets at once (``flats``, ``signs``: N x c), one
+        batched computation: the eigenvalues mu of (A + sigma B)^-1 B give F = sigma - 1/mu (sigma:
+        a friction where no pencil is singular, e.g. one where the branch is consistent and the
+        constraints do not vanish; a pencil singular there is solved alone by QZ)."""
+        flats = np.asarray(flats, dtype=int).reshape(len(flats), -1)
+        N, c = flats.shape
+        if not N:
+            return []
+        wd = self.woodbury(W)
+        p = self.p
+        sg = np.asarray(signs, dtype=float).reshape(N, c)[:, :, None]
+        A = np.zeros((N, p + c, p + c))
+        B = np.zeros((N, p + c, p + c))
+        A[:, :p, :p] = np.eye(p)
+        B[:, :p, :p] = wd["H"]
+        B[:, :p, p:] = -wd["h"]
+        A[:, p:, :p] = sg * wd["CL"][flats]
+        A[:, p:, p:] = sg * wd["C0"][flats]
+        B[:, p:, :p] = sg * wd["EL"][flats]
+        B[:, p:, p:] = sg * wd["E0"][flats]
+        scale = np.maximum(np.abs(A).max(axis=2), np.abs(B).max(axis=2))
+        scale[scale == 0] = 1.0
+        A /= scale[:, :, None]
+        B /= scale[:, :, None]
+        try:
+            X = np.linalg.solve(A + sigma * B, B)
+            ok = np.all(np.isfinite(X), axis=(1, 2))
+        except np.linalg.LinAlgError:
+            X, ok = None, np.zeros(N, dtype=bool)
+        out = [None] * N
+        if X is not None and ok.any():
+            mu = np.linalg.eigvals(X[ok])
+            for i, row in zip(np.flatnonzero(ok), mu):
+                row = row[np.abs(row) > 1e-14 * max(np.abs(row).max(initial=0.0), 1e-300)]
+                F = sigma - 1.0 / row
+                F = F[np.abs(F.imag) <= IMAG_RTOL * np.maximum(np.abs(F.real), 1e-300)].real
+                out[i] = np.sort(F[(F >= lo) & (F <= hi)])
+        for i in np.flatnonzero(~ok):
+            out[i] = _real_eigs(A[i], -B[i], lo, hi)
+        return out
 
     def poles(self, lo=-math.inf, hi=math.inf) -> np.ndarray:
         """F in [lo, hi] where det M(F) = 0 (F = -1/eig(H)), sorted."""
