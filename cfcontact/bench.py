@@ -16,6 +16,9 @@ method runs at least ``--repeat`` times (default 3, ``--quick``: 1) and until it
 the fastest run is reported for both methods, and the median run as well (the noise of a
 shared machine only ever adds time, and adds relatively more to a 15 ms run than to a 2 s one).
 
+Part C (``--part C``) -- the friction map of the main demo's load path on a 200 x 200 (alpha, F) grid,
+its fold curves and critical friction, and the same 200 alpha-paths traced alone (:func:`part_c`).
+
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
 nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two steel blocks
 (:func:`~cfcontact.demo_models.build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
@@ -348,6 +351,66 @@ def table_b(rows) -> str:
     return "\n".join(lines)
 
 
+# ====================================================================== Part C (issue #16)
+def part_c(quick=False, log=print, frictions=(0.0, 30.0), points=None) -> dict:
+    """The friction map of the main demo's load path (:func:`cfcontact.fmap.multiplicity_map`,
+    ``points`` x ``points`` grid: 200, ``quick``: 40), its fold curves and critical friction
+    (:func:`cfcontact.fmap.fold_curves`), and the reference of the map's cost: the same alpha-paths
+    traced one by one (``trace_exact`` with the same starts and a condensed solver sharing K's
+    factorization), their times summed."""
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.exact import trace_exact
+    from cfcontact.fmap import _Starts, _system_at, fold_curves, multiplicity_map
+    from cfcontact.options import PathOptions
+    from cfcontact.rational import friction_pattern, solver_at
+
+    n = int(points or (40 if quick else 200))
+    system = dm.build_demo(dm.DEMO_FRICTIONS[0])
+    solver = CondensedSolver(system)
+    alphas, Fs = np.linspace(*dm.DEMO_ALPHA, n), np.linspace(*frictions, n)
+    gc.collect()
+    t0 = time.perf_counter()
+    fmap = multiplicity_map(system, alphas, Fs, *dm.DEMO_ALPHA, solver=solver)
+    t_map = time.perf_counter() - t0
+    # the reference: the same n alpha-paths traced alone
+    phi, opts = friction_pattern(system), PathOptions()
+    starts = _Starts(system, solver, dm.DEMO_ALPHA[0], float(Fs.max()), opts)
+    t_paths, transitions = 0.0, 0
+    for F in Fs:
+        sysF = _system_at(system, F, phi)
+        view = solver_at(solver, sysF)
+        sets = starts.sets_at(F)
+        t0 = time.perf_counter()
+        path = trace_exact(sysF, *dm.DEMO_ALPHA, solver=view, start_sets=sets)
+        t_paths += time.perf_counter() - t0
+        transitions += len(path.transitions)
+    log(f"  map {n} x {n}: {t_map:.2f} s (alpha-paths inside {fmap.timings['trace']:.2f} s, counting "
+        f"{fmap.timings['count']:.3f} s, start path {fmap.timings['start_path']:.2f} s); the {n} alpha-paths alone: "
+        f"{t_paths:.2f} s; ratio {t_map / t_paths:.2f}")
+    t0 = time.perf_counter()
+    fc = fold_curves(system, frictions, dm.DEMO_ALPHA, solver=solver)
+    t_curves = time.perf_counter() - t0
+    crit = fc.critical
+    log(f"  fold curves F in [{frictions[0]:g}, {frictions[1]:g}]: {t_curves:.2f} s ({fc.probes} probes, "
+        f"{len(fc.curves)} curves, {len(fc.cusps)} cusps); critical friction of the path: {crit}")
+    return {"points": n, "frictions": list(frictions), "map_time": t_map, "map_timings": fmap.timings,
+            "alpha_paths_time": t_paths, "alpha_paths_transitions": transitions, "ratio": t_map / t_paths,
+            "max_solutions": int(fmap.counts.max()), "curves_time": t_curves, "curve_timings": fc.timings,
+            "probes": fc.probes, "curves": len(fc.curves), "cusps": len(fc.cusps),
+            "critical_friction": crit.friction, "critical_alpha": crit.alpha, "critical_node": crit.node,
+            "critical_set": crit.set, "notes": fc.notes}
+
+
+def table_c(r) -> str:
+    return "\n".join([
+        f"map {r['points']} x {r['points']} (alpha x F): {r['map_time']:.2f} s; the {r['points']} alpha-paths alone "
+        f"{r['alpha_paths_time']:.2f} s; ratio {r['ratio']:.2f} (target <= 2)",
+        f"fold curves F in {r['frictions']}: {r['curves_time']:.2f} s ({r['probes']} probes, {r['curves']} curves, "
+        f"{r['cusps']} cusps)",
+        f"critical friction of the path: F = {r['critical_friction']:.12g} (alpha = {r['critical_alpha']:.10g}, "
+        f"node {r['critical_node']} {r['critical_set']})"])
+
+
 # ====================================================================== main
 def add_arguments(ap):
     """The benchmark's options (shared by ``demos/bench.py`` and ``cfcontact bench``)."""
@@ -356,7 +419,7 @@ def add_arguments(ap):
                                     "--quick: 2e3,1e4)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
-    ap.add_argument("--part", default="AB", help="A, B or AB (default)")
+    ap.add_argument("--part", default="AB", help="A, B or AB (default); C: the friction map (issue #16)")
     ap.add_argument("--repeat", type=int, help="Part A: run each method at least this many times and report the "
                                                "fastest (default 3; --quick: 1)")
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
@@ -370,8 +433,8 @@ def add_arguments(ap):
 def run(args, argv_text="") -> int:
     """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
     part = str(args.part).upper()
-    if not part or set(part) - {"A", "B"}:
-        raise InputError(f"--part must be A, B or AB, got {args.part!r}")
+    if not part or set(part) - {"A", "B", "C"}:
+        raise InputError(f"--part must be A, B, AB or contain C, got {args.part!r}")
     try:
         sizes = [float(s) for s in args.sizes.split(",")] if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
     except ValueError:
@@ -418,6 +481,11 @@ def run(args, argv_text="") -> int:
             save()
         print(table_b(result["part_b"]), flush=True)
         print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
+    if "C" in part:
+        print("Part C: friction map, fold curves and critical friction of the main demo's load path", flush=True)
+        result["part_c"] = part_c(quick=args.quick)
+        save()
+        print(table_c(result["part_c"]), flush=True)
     result["machine"]["loadavg_end"] = os.getloadavg()
     save()
     print(f"\nwritten {os.path.abspath(jpath)}")
