@@ -363,8 +363,41 @@ def _start_codes(system, solver, alpha, F, pattern, opts) -> tuple:
     return codes, how
 
 
-# ====================================================================== exact stepper
-class FrictionStepper(Stepper):
+# ====================================================================== steppers
+class _FStepper(Stepper):
+    """What the two steppers in F share: the accepted-point bookkeeping of :meth:`advance` (the
+    method's step is :meth:`_step`), branches entered in their exact form, the callback's points."""
+
+    finished = done = False
+    _pending_index = None
+
+    def advance(self) -> Optional[int]:
+        if self.finished:
+            return None
+        if self._pending_index is not None:
+            idx, self._pending_index = self._pending_index, None
+            return idx
+        if self.done:
+            self._finish("completed")
+            return None
+        return self._step()
+
+    def _add(self, codes, s, F, origin, parent) -> int:
+        """Enter the branch of ``codes`` at F in direction s; index of its entry point."""
+        rb = self.data.branch(codes)
+        self.branch = self.path.add_friction_branch(sets_from_codes(codes), s, rb.affine_in_mu(self.data.w),
+                                                    self.solver, origin=origin, parent=parent, F_enter=F)
+        self.codes, self.s, self.F = np.asarray(codes, dtype=np.int8), s, F
+        return self.path.add_point(self.branch, F)
+
+    def point(self, index: int) -> PathPoint:
+        path = self.path
+        b = path._point_branch[index]
+        sol = Solution.from_y(self.system, path._ys[index], path._alphas[index], sets=path.branches[b].sets)
+        return PathPoint(index, path._alphas[index], b, sol, path)
+
+
+class FrictionStepper(_FStepper):
     """The exact continuation in F (see the module docstring) as a stepper: one transition per
     accepted point; ``resume`` as for :class:`cfcontact.exact.ExactStepper`."""
 
@@ -374,9 +407,9 @@ class FrictionStepper(Stepper):
         self.system, self.span, self.opts, self.solver = system, span, options, solver
         self.alpha = float(alpha)
         self.pattern = friction_pattern(system) if pattern is None else np.asarray(pattern, dtype=float)
-        self.finished, self.done = False, False
         self.ctx = _FContext(system, solver, options, span.lo, span.hi, float(options.tie_rtol), self.alpha,
                              self.pattern)
+        self.data = self.ctx.data
         if resume is None:
             self._start_clock()
             self.path = FrictionPath.for_friction(system, "exact", span.start, span.end, self.alpha,
@@ -432,13 +465,10 @@ class FrictionStepper(Stepper):
         return nxt.codes.copy(), d
 
     def _enter(self, codes, s, F, origin, parent, e_in=-1):
-        rb = self.ctx.data.branch(codes)
-        self.branch = self.path.add_friction_branch(sets_from_codes(codes), s, rb.affine_in_mu(self.ctx.data.w),
-                                                    self.solver, origin=origin, parent=parent, F_enter=F)
-        self.codes, self.s, self.F = np.asarray(codes, dtype=np.int8), s, F
+        index = self._add(codes, s, F, origin, parent)
         self._entry_zero(e_in)
         self.ctx.visited.setdefault((_digest(self.codes.tobytes()), s), []).append(F)
-        return self.path.add_point(self.branch, F)
+        return index
 
     def _entry_zero(self, e_in=-1):
         """The constraints vanishing at the entry of the current branch (their roots there are the
@@ -486,15 +516,28 @@ class FrictionStepper(Stepper):
             return "pole", poles[0][1]
         return None
 
-    def advance(self) -> Optional[int]:
-        if self.finished:
-            return None
-        if self._pending_index is not None:
-            idx, self._pending_index = self._pending_index, None
-            return idx
-        if self.done:
-            self._finish("completed")
-            return None
+    def _precise_side(self, ln, j, nxt, e, F_star) -> float:
+        """The transition point from its more precise side: the root of the entering constraint e
+        on the new branch when its uncertainty (rounding of the value over the rate) is smaller
+        than that of the root found on the old branch (constraint j) and the two agree within the
+        latter (a steep branch entered through a flat constraint locates the point better)."""
+        if e is None or e < 0:
+            return F_star
+        unc_old = float(ln.tol_v[j]) / max(abs(float(ln.dc[j])), 1e-300)
+        unc_new = float(nxt.tol_v[e]) / max(abs(float(nxt.dc[e])), 1e-300)
+        if not unc_new < unc_old:
+            return F_star
+        rb, W = self.ctx.data.branch(nxt.codes), self.ctx.data.W
+
+        def c(F):
+            return float(rb.csgn[e] * rb.solve(F, W)[1][rb.cidx[e], 0])
+
+        res = polish_root(c, F_star, self.ctx.lo, self.ctx.hi, max(abs(F_star), 1.0))
+        if res is None or abs(res[0] - F_star) > 4.0 * unc_old:
+            return F_star
+        return res[0]
+
+    def _step(self) -> Optional[int]:
         ctx, path, s = self.ctx, self.path, self.s
         found = self._exit()
         if found is None:
@@ -531,6 +574,7 @@ class FrictionStepper(Stepper):
                                          jsonable({"reason": exc.kind, **exc.data})))
             self._finish("stuck")
             return None
+        F_star = self._precise_side(ln, j, nxt, e_in, F_star)
         m = self.system.m
         if len(tied) > 1 or len(pivots) > 1:
             ctx.stats["degenerate_points"] += 1
@@ -568,12 +612,6 @@ class FrictionStepper(Stepper):
                 "F": float(self.F), "transitions0": int(self.n_trans0), "entry_zero": sorted(self.at_entry),
                 "visited": [[k.hex(), int(sg), float(F)] for (k, sg), Fs in self.ctx.visited.items() for F in Fs]}
 
-    def point(self, index: int) -> PathPoint:
-        path = self.path
-        b = path._point_branch[index]
-        sol = Solution.from_y(self.system, path._ys[index], path._alphas[index], sets=path.branches[b].sets)
-        return PathPoint(index, path._alphas[index], b, sol, path)
-
     def stop(self):
         if self.done:
             return self._finish("completed")
@@ -596,7 +634,7 @@ class FrictionStepper(Stepper):
 
 
 # ====================================================================== seed stepper
-class SeedFrictionStepper(Stepper):
+class SeedFrictionStepper(_FStepper):
     """The seed's predictor-corrector with F as the parameter (the reference of the exact method).
 
     On a branch (states fixed) it steps F -> F + s h, evaluates the branch there (DirNeu in the
@@ -613,24 +651,16 @@ class SeedFrictionStepper(Stepper):
         self.system, self.span, self.opts, self.solver = system, span, options, solver
         self.alpha = float(alpha)
         self.pattern = friction_pattern(system) if pattern is None else np.asarray(pattern, dtype=float)
-        self.finished = False
         self.data = _FData(system, solver, self.alpha, self.pattern)
         self._start_clock()
         self.path = FrictionPath.for_friction(system, "seed", span.start, span.end, self.alpha, options.to_dict(),
                                               self.pattern)
         codes, self.start = _start_codes(system, solver, self.alpha, span.start, self.pattern, options)
         self.s = 1 if span.end > span.start else -1
-        self.h, self.steps, self.done = options.h0, 0, False
-        self._new_branch(codes, self.s, span.start, None, None)
+        self.h, self.steps = options.h0, 0
+        self._add(codes, self.s, span.start, None, None)
         self._pending_index = 0
         self.seen: dict = {}
-
-    def _new_branch(self, codes, s, F, origin, parent):
-        rb = self.data.branch(codes)
-        self.branch = self.path.add_friction_branch(sets_from_codes(codes), s, rb.affine_in_mu(self.data.w),
-                                                    self.solver, origin=origin, parent=parent, F_enter=F)
-        self.codes, self.s, self.F = np.asarray(codes, dtype=np.int8), s, F
-        return self.path.add_point(self.branch, F)
 
     def _consistent(self, codes, F) -> bool:
         rb = self.data.branch(codes)
@@ -643,15 +673,7 @@ class SeedFrictionStepper(Stepper):
         c = rb.csgn * ind[rb.cidx, 0]
         return bool(np.all(c >= -1e-15 * max(np.abs(ind).max(initial=0.0), 1e-300)))
 
-    def advance(self) -> Optional[int]:
-        if self.finished:
-            return None
-        if self._pending_index is not None:
-            idx, self._pending_index = self._pending_index, None
-            return idx
-        if self.done:
-            self._finish("completed")
-            return None
+    def _step(self) -> Optional[int]:
         opts, lo, hi = self.opts, self.span.lo, self.span.hi
         while True:
             self.steps += 1
@@ -724,19 +746,13 @@ class SeedFrictionStepper(Stepper):
                                   "to": STATE_NAMES[int(codes[node])]}])
         path.transitions.append(tr)
         F_next = F1 if kind == "transversal" else F
-        idx = self._new_branch(codes, s_new, F_next, tr.index, self.branch.index)
+        idx = self._add(codes, s_new, F_next, tr.index, self.branch.index)
         self.done = kind == "transversal" and F_next in (self.span.lo, self.span.hi)
         return idx
 
     @property
     def resume_state(self) -> dict:
         return {}
-
-    def point(self, index: int) -> PathPoint:
-        path = self.path
-        b = path._point_branch[index]
-        sol = Solution.from_y(self.system, path._ys[index], path._alphas[index], sets=path.branches[b].sets)
-        return PathPoint(index, path._alphas[index], b, sol, path)
 
     def stop(self):
         return self._finish("stopped by callback")

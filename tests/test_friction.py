@@ -276,3 +276,30 @@ def test_demo_path_critical_friction_not_below_scan_bound():
     for F, folds in ((crit.friction * (1 - 1e-5), 0), (crit.friction * (1 + 1e-5), 2)):
         sysF = friction_system(system, F, phi)
         assert len(trace_exact(sysF, 0.0, 1.0, solver=solver_at(solver, sysF)).folds) == folds
+
+
+@pytest.mark.slow
+def test_quick_blocks_path_critical_friction_not_below_scan_bound():
+    from cfcontact.critical import critical_friction
+    from cfcontact.demo_models import build_blocks
+
+    system = build_blocks(30.0, quick=True)  # the two steel blocks of the benchmark, 12 x 4 cells per block
+    crit = critical_friction_path(system, (0.0, 1.0), F_max=30.0)
+    assert crit.friction >= critical_friction(system).friction
+    assert abs(crit.friction - 26.7135731744) < 1e-8 * 26.7  # node 5 (docs/friction.md)
+
+
+@pytest.mark.slow
+def test_demo_fold_curves_through_the_folds_of_exact_alpha_paths():
+    from cfcontact.demo_models import build_demo
+
+    system = build_demo(0.6)
+    frictions = np.linspace(0.3, 12.0, 14)
+    fmap = multiplicity_map(system, np.linspace(0.0, 1.0, 11), frictions)
+    fc = fold_curves(system, (0.0, 12.0))
+    n = 0
+    for F, folds in zip(frictions, fmap.folds):
+        got = fc.alphas_at(F)
+        assert len(got) == len(folds) and np.allclose(got, sorted(folds), atol=1e-8), F
+        n += len(folds)
+    assert n > 50

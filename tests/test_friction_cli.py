@@ -14,32 +14,11 @@ from cfcontact.friction import FrictionPath, load_path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-CASE = """title = "friction path"
-[geometry]
-kind = "two_blocks"
-nx = 12
-ny = 4
-length = 3.0
-height = 1.0
-height2 = 0.5
-[contact]
-friction = 30.0
-[loads]
-clamp = ["left1", "left2"]
-[loads.f1]
-top1 = [-5.734e7, 3.658e6]
-right1 = [3.910e7, -8.724e7]
-bottom2 = [1.877e8, -1.500e6]
-[loads.f2]
-top1 = [1.0e8, 0.0]
-right2 = [-5.807e7, 1.510e3]
-bottom2 = [-1.045e8, 1.450e8]
-[path]
-method = "exact"
-{path}
-[output]
-render_panel = false
-"""
+#: demos/cases/folds.toml (two steel blocks, 12 x 4 cells, F = 30) with more [path] keys, no panel
+with open(os.path.join(ROOT, "demos", "cases", "folds.toml")) as _fh:
+    CASE = _fh.read().replace('[path]\nmethod = "exact"\n', '[path]\nmethod = "exact"\n{path}\n') \
+        .replace("[output]\n", "[output]\nrender_panel = false\n")
+assert "{path}" in CASE
 
 
 def _case(tmp_path, path_keys, name="case.toml"):
