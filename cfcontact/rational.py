@@ -284,12 +284,17 @@ class RationalBranch:
             X, ok = None, np.zeros(N, dtype=bool)
         out = [None] * N
         if X is not None and ok.any():
-            mu = np.linalg.eigvals(X[ok])
-            for i, row in zip(np.flatnonzero(ok), mu):
-                row = row[np.abs(row) > 1e-14 * max(np.abs(row).max(initial=0.0), 1e-300)]
-                F = sigma - 1.0 / row
-                F = F[np.abs(F.imag) <= IMAG_RTOL * np.maximum(np.abs(F.real), 1e-300)].real
-                out[i] = np.sort(F[(F >= lo) & (F <= hi)])
+            mu = np.linalg.eigvals(X[ok])  # (k, p + c); mu = 0: F = infinity
+            amu = np.abs(mu)
+            keep = amu > 1e-14 * np.maximum(amu.max(axis=1, keepdims=True), 1e-300)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                F = sigma - 1.0 / np.where(keep, mu, 1.0)
+            keep &= np.abs(F.imag) <= IMAG_RTOL * np.maximum(np.abs(F.real), 1e-300)
+            Fr = F.real
+            keep &= (Fr >= lo) & (Fr <= hi)
+            Fs = np.sort(np.where(keep, Fr, np.inf), axis=1)
+            for i, row, k in zip(np.flatnonzero(ok), Fs, keep.sum(axis=1)):
+                out[i] = row[:k]
         for i in np.flatnonzero(~ok):
             out[i] = _real_eigs(A[i], -B[i], lo, hi)
         return out
