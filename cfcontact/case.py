@@ -499,7 +499,8 @@ def _validate_path(table):
 def _validate_friction_parameter(path, contact):
     """[path] parameter: "alpha" or "friction"; for "friction" the range (filled in) and the backend."""
     if path["parameter"] not in PARAMETERS:
-        raise CaseError(f"[path] parameter: expected one of {', '.join(map(repr, PARAMETERS))}, got {path['parameter']!r}")
+        raise CaseError(f"[path] parameter: expected one of {', '.join(map(repr, PARAMETERS))}, "
+                        f"got {path['parameter']!r}")
     if path["parameter"] != "friction":
         return
     fr = contact.get("friction", 0.0)

@@ -316,7 +316,8 @@ def _check_request(system, alpha, F_start, F_end, options, method, solver):
     if not isinstance(system, ContactSystem):
         raise InputError(f"system must be a ContactSystem, got {type(system).__name__}")
     if method not in FRICTION_METHODS:
-        raise InputError(f"unknown method {method!r} for a friction path; valid: {', '.join(map(repr, FRICTION_METHODS))}")
+        raise InputError(f"unknown method {method!r} for a friction path; valid: "
+                         f"{', '.join(map(repr, FRICTION_METHODS))}")
     try:
         a, F0, F1 = float(alpha), float(F_start), float(F_end)
     except (TypeError, ValueError):
@@ -549,7 +550,8 @@ class FrictionStepper(_FStepper):
             Fp = found[1]
             self.branch.alpha_exit = Fp
             path.events.append(PathEvent("unbounded", Fp, f"the branch becomes singular at F = {Fp!r} before any of "
-                                         f"its constraints vanishes: its multipliers grow without bound", self.branch.index))
+                                         f"its constraints vanishes: its multipliers grow without bound",
+                                         self.branch.index))
             self._finish("stuck")
             return None
         F_star, j = found

@@ -358,16 +358,18 @@ def polish_root(fun, F0: float, lo: float, hi: float, scale: float = 1.0) -> Opt
     ref = max(abs(F0), scale, 1e-300)
     d = BRACKET_START * ref
     try:
-        f0 = fun(F0)
-    except np.linalg.LinAlgError:
+        with np.errstate(all="ignore"):
+            f0 = fun(F0)
+    except (np.linalg.LinAlgError, ZeroDivisionError):
         f0 = float("nan")
     if f0 == 0.0:
         return F0, (F0, 0.0), (F0, 0.0)
     while d <= BRACKET_MAX * ref:
         a, b = max(lo, F0 - d), min(hi, F0 + d)
         try:
-            fa, fb = fun(a), fun(b)
-        except np.linalg.LinAlgError:
+            with np.errstate(all="ignore"):
+                fa, fb = fun(a), fun(b)
+        except (np.linalg.LinAlgError, ZeroDivisionError):
             return None
         if np.isfinite(fa) and np.isfinite(fb):
             if fa == 0.0:
@@ -380,9 +382,13 @@ def polish_root(fun, F0: float, lo: float, hi: float, scale: float = 1.0) -> Opt
                         b, fb = F0, f0
                     else:
                         a, fa = F0, f0
-                r = float(brentq(fun, a, b, xtol=1e-15 * ref, rtol=8.9e-16, maxiter=200))
-                if not abs(fun(r)) <= max(abs(fa), abs(fb)):
-                    return None  # a pole, not a root
+                try:
+                    with np.errstate(all="ignore"):
+                        r = float(brentq(fun, a, b, xtol=1e-15 * ref, rtol=8.9e-16, maxiter=200))
+                        if not abs(fun(r)) <= max(abs(fa), abs(fb)):
+                            return None  # a pole, not a root
+                except (ValueError, RuntimeError, ZeroDivisionError, np.linalg.LinAlgError):
+                    return None
                 return r, (a, float(fa)), (b, float(fb))
         if a == lo and b == hi:
             return None

@@ -303,3 +303,24 @@ def test_demo_fold_curves_through_the_folds_of_exact_alpha_paths():
         assert len(got) == len(folds) and np.allclose(got, sorted(folds), atol=1e-8), F
         n += len(folds)
     assert n > 50
+
+
+def test_per_node_friction_scales_by_one_factor():
+    base = random_system(4, 8, friction=1.0, coupling=8.0, extra_dofs=0)
+    system = base.with_friction(np.array([0.5, 2.0, 0.0, 1.0]))  # phi = (0.25, 1, 0, 0.5): node 2 frictionless
+    phi = np.array([0.25, 1.0, 0.0, 0.5])
+    assert np.allclose(friction_pattern(system), phi)
+    path = trace_friction_path(system, 0.0, 40.0, 0.0)
+    assert path.status == "completed" and np.allclose(path.pattern, phi)
+    assert len(path.transitions) == 5 and len(path.folds) == 2
+    assert worst_residual_friction(system, path) < 1e-9
+    for lo, hi, k in path.multiplicity_intervals():
+        F = 0.5 * (lo + hi)
+        sysF = friction_system(system, F)
+        assert np.allclose(sysF.friction_vector, F * phi)
+        assert k <= len(enumerate_solutions(sysF, 0.0))
+        for sol in path.solutions_at(F):
+            assert verify(sysF, sol, 0.0).ok(1e-9)
+            assert sol.lam_t[2] == 0.0  # the frictionless node
+    seed_path = trace_friction_path(system, 0.0, 40.0, 0.0, method="seed")
+    assert set_changes(seed_path) == set_changes(path)
