@@ -638,12 +638,15 @@ class FoldCurves:
         """The fold alphas of every curve at F (exact)."""
         return sorted(a for c in self.curves if (a := c.alpha(F)) is not None)
 
-    def to_dict(self, per_piece: int = 24) -> dict:
+    def to_dict(self, points: bool = False) -> dict:
+        """JSON data; ``points``: also each curve's exactly evaluated (alpha, F) points (:meth:`FoldCurve.sample`;
+        :func:`save_map` puts them in map.npz instead)."""
         return jsonable({
             "alpha_start": self.alpha_start, "alpha_end": self.alpha_end, "F_range": list(self.F_range),
             "curves": [{"start": c.start, "end": c.end, "F_range": list(c.F_range),
-                        "pieces": [{"F_a": p.F_a, "F_b": p.F_b, "node": p.node, "set": p.set} for p in c.pieces],
-                        "points_alpha_F": c.sample(per_piece)} for c in self.curves],
+                        "pieces": [{"F_a": p.F_a, "F_b": p.F_b, "node": p.node, "set": p.set,
+                                    "alpha_a": p.ends[0], "alpha_b": p.ends[1]} for p in c.pieces],
+                        **({"points_alpha_F": c.sample()} if points else {})} for c in self.curves],
             "cusps": self.cusps, "critical": self.critical.to_dict(), "intervals": self.intervals,
             "timings": self.timings, "probes": self.probes, "notes": self.notes})
 
@@ -766,8 +769,10 @@ def fold_curves(system, F_range=(0.0, 30.0), alpha_range=(0.0, 1.0), frictions=N
 
 # ====================================================================== files
 def save_map(folder, fmap: FrictionMap, curves: Optional[FoldCurves] = None, marks=(), extra=None) -> list:
-    """Write ``map.json`` (everything, strict JSON) and ``map.npz`` (alphas, frictions, counts and
-    the curves' exact points) into ``folder``; returns the file names."""
+    """Write ``map.json`` (strict JSON: the map, each path's intervals and folds, the curves' pieces
+    with their end points, cusps, the critical friction) and ``map.npz`` (alphas, frictions, counts,
+    ``curve_<i>``: each curve's exactly evaluated (alpha, F) points, ``cusps``) into ``folder``;
+    returns the file names."""
     os.makedirs(folder, exist_ok=True)
     data = {**fmap.to_dict(), "marks": list(map(float, marks)), **(extra or {})}
     arrays = {"alphas": fmap.alphas, "frictions": fmap.frictions, "counts": fmap.counts}
