@@ -16,6 +16,11 @@ method runs at least ``--repeat`` times (default 3, ``--quick``: 1) and until it
 the fastest run is reported for both methods, and the median run as well (the noise of a
 shared machine only ever adds time, and adds relatively more to a 15 ms run than to a 2 s one).
 
+Part E (``--part E``) -- the friction map of the main demo's load path on a 200 x 200 (alpha, F) grid,
+its fold curves and critical friction, and the same 200 alpha-paths traced alone (:func:`part_e`).
+(Parts C and D -- long interfaces and hard cases of the exact method -- are in
+:mod:`cfcontact.bench_stress`.)
+
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
 nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two steel blocks
 (:func:`~cfcontact.demo_models.build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
@@ -376,6 +381,77 @@ def table_b(rows) -> str:
     return "\n".join(lines)
 
 
+# ====================================================================== Part E (issue #16)
+def part_e(quick=False, log=print, frictions=(0.0, 30.0), points=None) -> dict:
+    """The friction map of the main demo's load path (:func:`cfcontact.fmap.multiplicity_map`,
+    ``points`` x ``points`` grid: 200, ``quick``: 40), its fold curves and critical friction
+    (:func:`cfcontact.fmap.fold_curves`), and the reference of the map's cost: the same alpha-paths
+    traced one by one (``trace_exact`` with the same starts and a condensed solver sharing K's
+    factorization), their times summed."""
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.exact import trace_exact
+    from cfcontact.fmap import _Starts, _system_at, fold_curves, multiplicity_map
+    from cfcontact.options import PathOptions
+    from cfcontact.rational import friction_pattern, solver_at
+
+    n = int(points or (40 if quick else 200))
+    system = dm.build_demo(dm.DEMO_FRICTIONS[0])
+    solver = CondensedSolver(system)
+    alphas, Fs = np.linspace(*dm.DEMO_ALPHA, n), np.linspace(*frictions, n)
+    phi, opts = friction_pattern(system), PathOptions()
+    starts = _Starts(system, solver, dm.DEMO_ALPHA[0], float(Fs.max()), opts)
+    last = {}
+
+    def map_run():
+        t0 = time.perf_counter()
+        last["map"] = multiplicity_map(system, alphas, Fs, *dm.DEMO_ALPHA, solver=solver)
+        return time.perf_counter() - t0
+
+    def paths_run():  # the reference: the same n alpha-paths traced alone (their trace_exact calls timed)
+        t, last["transitions"] = 0.0, 0
+        for F in Fs:
+            sysF = _system_at(system, F, phi)
+            view, sets = solver_at(solver, sysF), starts.sets_at(F)
+            t0 = time.perf_counter()
+            path = trace_exact(sysF, *dm.DEMO_ALPHA, solver=view, start_sets=sets)
+            t += time.perf_counter() - t0
+            last["transitions"] += len(path.transitions)
+        return t
+
+    repeat = 1 if quick else 3  # alternately, the fastest of each (the noise of a shared machine only adds)
+    map_times, path_times = [], []
+    for _ in range(repeat):
+        map_times += _timed_runs(map_run, 1, 0.0)
+        path_times += _timed_runs(paths_run, 1, 0.0)
+    fmap, transitions = last["map"], last["transitions"]
+    t_map, t_paths = min(map_times), min(path_times)
+    log(f"  map {n} x {n}: {t_map:.2f} s (fastest of {repeat}; the last: alpha-paths inside "
+        f"{fmap.timings['trace']:.2f} s, counting {fmap.timings['count']:.3f} s, start path "
+        f"{fmap.timings['start_path']:.2f} s); the {n} alpha-paths alone: {t_paths:.2f} s; ratio {t_map / t_paths:.2f}")
+    t0 = time.perf_counter()
+    fc = fold_curves(system, frictions, dm.DEMO_ALPHA, solver=solver)
+    t_curves = time.perf_counter() - t0
+    crit = fc.critical
+    log(f"  fold curves F in [{frictions[0]:g}, {frictions[1]:g}]: {t_curves:.2f} s ({fc.probes} probes, "
+        f"{len(fc.curves)} curves, {len(fc.cusps)} cusps); critical friction of the path: {crit}")
+    return {"points": n, "frictions": list(frictions), "map_time": t_map, "map_timings": fmap.timings,
+            "map_times": map_times, "alpha_paths_times": path_times, "alpha_paths_time": t_paths, "alpha_paths_transitions": transitions, "ratio": t_map / t_paths,
+            "max_solutions": int(fmap.counts.max()), "curves_time": t_curves, "curve_timings": fc.timings,
+            "probes": fc.probes, "curves": len(fc.curves), "cusps": len(fc.cusps),
+            "critical_friction": crit.friction, "critical_alpha": crit.alpha, "critical_node": crit.node,
+            "critical_set": crit.set, "notes": fc.notes}
+
+
+def table_e(r) -> str:
+    return "\n".join([
+        f"map {r['points']} x {r['points']} (alpha x F): {r['map_time']:.2f} s; the {r['points']} alpha-paths alone "
+        f"{r['alpha_paths_time']:.2f} s; ratio {r['ratio']:.2f} (target <= 2)",
+        f"fold curves F in {r['frictions']}: {r['curves_time']:.2f} s ({r['probes']} probes, {r['curves']} curves, "
+        f"{r['cusps']} cusps)",
+        f"critical friction of the path: F = {r['critical_friction']:.12g} (alpha = {r['critical_alpha']:.10g}, "
+        f"node {r['critical_node']} {r['critical_set']})"])
+
+
 # ====================================================================== main
 def add_arguments(ap):
     """The benchmark's options (shared by ``demos/bench.py`` and ``cfcontact bench``)."""
@@ -384,8 +460,9 @@ def add_arguments(ap):
                                     "--quick: 2e3,1e4)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
-    ap.add_argument("--part", default="AB", help="A, B, C, D or several, e.g. AB (default): C = long interfaces, "
-                                                  "D = hard cases of the exact method (cfcontact.bench_stress)")
+    ap.add_argument("--part", default="AB", help="A, B, C, D, E or several, e.g. AB (default): C = long interfaces, "
+                                                  "D = hard cases of the exact method (cfcontact.bench_stress), "
+                                                  "E = the friction map of the main demo (issue #16)")
     ap.add_argument("--time-limit", type=float, default=600.0,
                     help="Parts C and D: tracing time limit of one row [s] (default 600)")
     ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
@@ -404,8 +481,8 @@ def add_arguments(ap):
 def run(args, argv_text="") -> int:
     """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
     part = str(args.part).upper()
-    if not part or set(part) - {"A", "B", "C", "D"}:
-        raise InputError(f"--part must be letters among A, B, C, D (e.g. AB), got {args.part!r}")
+    if not part or set(part) - {"A", "B", "C", "D", "E"}:
+        raise InputError(f"--part must be letters among A, B, C, D, E (e.g. AB), got {args.part!r}")
     time_limit = getattr(args, "time_limit", 600.0)
     if not (0 < time_limit < math.inf):
         raise InputError(f"--time-limit must be a positive number of seconds, got {time_limit}")
@@ -481,6 +558,11 @@ def run(args, argv_text="") -> int:
         print(bs.table(result["part_d"]["rows"]), flush=True)
         for name, rl in result["part_d"]["random_loads"].items():
             print(f"random load paths, {name} model, F = 30: {rl['summary']}", flush=True)
+    if "E" in part:
+        print("Part E: friction map, fold curves and critical friction of the main demo's load path", flush=True)
+        result["part_e"] = part_e(quick=args.quick)
+        save()
+        print(table_e(result["part_e"]), flush=True)
     result["machine"]["loadavg_end"] = os.getloadavg()
     save()
     print(f"\nwritten {os.path.abspath(jpath)}")
