@@ -389,10 +389,11 @@ def test_two_concurrent_runs_into_one_folder(tmp_path):
     out = str(tmp_path / "shared")
     a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out], env=_env(), cwd=ROOT,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while not os.path.exists(out + ".lock") and time.monotonic() < deadline:
+    deadline = time.monotonic() + 600  # (a loaded machine can take long to import and validate)
+    while not os.path.exists(out + ".lock") and time.monotonic() < deadline and a.poll() is None:
         time.sleep(0.01)
     a.send_signal(signal.SIGSTOP)  # hold it inside its run
+    assert os.path.exists(out + ".lock"), "the first run never took its lock"
     try:
         for flags in ([], ["--force"], ["--resume"]):
             proc = _cfcontact("run", case_b, "-q", "-o", out, *flags)
