@@ -44,7 +44,7 @@ myst_heading_anchors = 3
 # autodoc: the docstrings as written; signatures with their annotations.
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
-autodoc_default_options = {"members": True, "show-inheritance": False}
+autodoc_default_options = {"members": True}
 autoclass_content = "both"
 # The docstrings are plain text: "name : description" entries under "Parameters" / "Returns"
 # headers with dashed underlines.  cfcontact_docs renders them as definition lists under rubrics
