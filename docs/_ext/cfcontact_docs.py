@@ -18,8 +18,8 @@ Environment:
 
 * ``CFCONTACT_DOCS_GALLERY=0``: run no demo (figures and outputs become a one-line note; for
   quick edits of the text), ``force``: rerun every job even if its outputs are up to date.
-  By default a job is rerun when the sources it depends on (``cfcontact/``, ``demos/``, the
-  tutorial, this folder) changed since its last run into this build directory.
+  By default a job runs again only when what it depends on (the package, this file, its own
+  script or page) changed since its last run into this build directory.
 * ``CFCONTACT_DOCS_JOBS``: how many demos run at once (default 2).
 """
 
@@ -44,25 +44,29 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 DOCS = os.path.dirname(HERE)
 ROOT = os.path.dirname(DOCS)
 
-#: job -> (command; {out} is the job's output folder; what it is).  Commands run in the
-#: repository root with this Python.  Reduced versions are said so on the pages that show them.
+#: job -> (command; {out} is the job's output folder; what it is; the files it depends on besides
+#: the package).  Commands run in the repository root with this Python.  Reduced versions are
+#: said so on the pages that show them.
 JOBS = {
     "demo": (["demos/main.py", "--output", "{out}"],
-             "the main demo as ./demo.sh runs it (three paths, n = 1320, pictures)"),
+             "the main demo as ./demo.sh runs it (three paths, n = 1320, pictures)", ("demos/main.py",)),
     "variants": (["demos/pictures.py", "-o", "{out}"],
-                 "one solved point of every example case (the geometry variants)"),
+                 "one solved point of every example case (the geometry variants)",
+                 ("demos/pictures.py", "demos/cases")),
     "hertz": (["demos/hertz.py", "--quick", "-o", "{out}"],
-              "Hertz validation on the two coarse meshes (--quick)"),
+              "Hertz validation on the two coarse meshes (--quick)", ("demos/hertz.py",)),
     "mindlin": (["demos/mindlin.py", "--size", "0.02", "--nx", "30", "-o", "{out}"],
-                "Cattaneo-Mindlin validation on coarse meshes (h = 0.02, nx = 30)"),
+                "Cattaneo-Mindlin validation on coarse meshes (h = 0.02, nx = 30)",
+                ("demos/mindlin.py", "demos/hertz.py")),
     "critical": (["demos/critical_friction.py", "--quick"],
-                 "critical friction of the two-block models on coarse meshes (--quick)"),
+                 "critical friction of the two-block models on coarse meshes (--quick)",
+                 ("demos/critical_friction.py",)),
     "tutorial": (["docs/_ext/run_blocks.py", "docs/tutorial.md", "{out}"],
-                 "the Python blocks of the tutorial, in order"),
+                 "the Python blocks of the tutorial, in order", ("docs/tutorial.md", "docs/_ext/run_blocks.py")),
 }
 
-#: what a change of forces the jobs to run again
-SOURCES = ("cfcontact", "demos", os.path.join("docs", "tutorial.md"), os.path.join("docs", "_ext"))
+#: what every job depends on: a change there runs them all again
+COMMON_SOURCES = ("cfcontact", "docs/_ext/cfcontact_docs.py")
 
 
 # ------------------------------------------------------------------ docstrings
@@ -138,10 +142,11 @@ def _process_docstring(app, what, name, obj, options, lines):
 
 
 # ------------------------------------------------------------------ gallery
-def _sources_digest() -> str:
+def _sources_digest(sources) -> str:
+    """A hash of the Python in use and of the files under ``sources`` (paths from the root)."""
     h = hashlib.sha256(sys.executable.encode())
-    for src in SOURCES:
-        full = os.path.join(ROOT, src)
+    for src in sources:
+        full = os.path.join(ROOT, *src.split("/"))
         files = [full] if os.path.isfile(full) else sorted(
             os.path.join(d, f) for d, _, fs in os.walk(full) if "__pycache__" not in d
             for f in fs if not f.endswith((".pyc", ".msh")) and "_out" not in d)
@@ -163,16 +168,18 @@ def _job_env() -> dict:
 
 def run_gallery(stage: str, mode: str = "1", parallel: int = 2) -> None:
     """Run the jobs whose outputs in ``stage`` are missing or stale (all of them with ``force``)."""
-    digest = _sources_digest()
     todo = []
-    for name, (cmd, what) in JOBS.items():
+    for name, (cmd, what, deps) in JOBS.items():
         out = os.path.join(stage, name)
         stamp = os.path.join(out, ".stamp")
-        if mode != "force" and os.path.isfile(stamp) and open(stamp).read() == digest:
-            continue
+        digest = _sources_digest(COMMON_SOURCES + deps) + " " + " ".join(cmd)
+        if mode != "force" and os.path.isfile(stamp):
+            with open(stamp) as fh:
+                if fh.read() == digest:
+                    continue
         shutil.rmtree(out, ignore_errors=True)
         os.makedirs(out)
-        todo.append((name, [sys.executable] + [a.format(out=out) for a in cmd], out, what))
+        todo.append((name, [sys.executable] + [a.format(out=out) for a in cmd], out, what, digest))
     if not todo:
         log.info("[gallery] up to date in %s", stage)
         return
@@ -181,15 +188,15 @@ def run_gallery(stage: str, mode: str = "1", parallel: int = 2) -> None:
     t_all = time.perf_counter()
     while todo or running:
         while todo and len(running) < max(1, parallel):
-            name, cmd, out, what = todo.pop(0)
+            name, cmd, out, what, digest = todo.pop(0)
             log.info("[gallery] %s: %s", name, what)
             fo = open(os.path.join(out, "stdout.txt"), "w")
             fe = open(os.path.join(out, "stderr.txt"), "w")
             proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=fo, stderr=fe, stdin=subprocess.DEVNULL)
-            running.append((name, cmd, out, proc, fo, fe, time.perf_counter()))
+            running.append((name, cmd, out, proc, fo, fe, time.perf_counter(), digest))
         time.sleep(0.2)
         for item in list(running):
-            name, cmd, out, proc, fo, fe, t0 = item
+            name, cmd, out, proc, fo, fe, t0, digest = item
             if proc.poll() is None:
                 continue
             running.remove(item)
