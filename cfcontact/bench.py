@@ -356,7 +356,11 @@ def add_arguments(ap):
                                     "--quick: 2e3,1e4)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
-    ap.add_argument("--part", default="AB", help="A, B or AB (default)")
+    ap.add_argument("--part", default="AB", help="A, B, C, D or several, e.g. AB (default): C = long interfaces, "
+                                                  "D = hard cases of the exact method (cfcontact.bench_stress)")
+    ap.add_argument("--time-limit", type=float, default=600.0,
+                    help="Parts C and D: tracing time limit of one row [s] (default 600)")
+    ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
     ap.add_argument("--repeat", type=int, help="Part A: run each method at least this many times and report the "
                                                "fastest (default 3; --quick: 1)")
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
@@ -370,8 +374,14 @@ def add_arguments(ap):
 def run(args, argv_text="") -> int:
     """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
     part = str(args.part).upper()
-    if not part or set(part) - {"A", "B"}:
-        raise InputError(f"--part must be A, B or AB, got {args.part!r}")
+    if not part or set(part) - {"A", "B", "C", "D"}:
+        raise InputError(f"--part must be letters among A, B, C, D (e.g. AB), got {args.part!r}")
+    time_limit = getattr(args, "time_limit", 600.0)
+    if not (0 < time_limit < math.inf):
+        raise InputError(f"--time-limit must be a positive number of seconds, got {time_limit}")
+    paths = getattr(args, "paths", None)
+    if paths is not None and paths < 1:
+        raise InputError(f"--paths must be >= 1, got {paths}")
     try:
         sizes = [float(s) for s in args.sizes.split(",")] if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
     except ValueError:
@@ -418,6 +428,21 @@ def run(args, argv_text="") -> int:
             save()
         print(table_b(result["part_b"]), flush=True)
         print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
+    if "C" in part or "D" in part:
+        from cfcontact import bench_stress as bs
+    if "C" in part:
+        print("Part C: long interfaces (exact method, condensed backend with factorization updates)", flush=True)
+        result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit)
+        save()
+        print(bs.table(result["part_c"]["rows"]), flush=True)
+        print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)
+    if "D" in part:
+        print("Part D: hard cases of the exact method", flush=True)
+        result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit)
+        save()
+        print(bs.table(result["part_d"]["rows"]), flush=True)
+        for name, rl in result["part_d"]["random_loads"].items():
+            print(f"random load paths, {name} model, F = 30: {rl['summary']}", flush=True)
     result["machine"]["loadavg_end"] = os.getloadavg()
     save()
     print(f"\nwritten {os.path.abspath(jpath)}")

@@ -81,10 +81,12 @@ class CondensedStats(SolverStats):
 
     dense_factorizations: int = 0
     dense_solves: int = 0
+    dense_updates: int = 0
 
     def as_dict(self) -> dict:
         d = super().as_dict()
-        d.update(dense_factorizations=self.dense_factorizations, dense_solves=self.dense_solves)
+        d.update(dense_factorizations=self.dense_factorizations, dense_solves=self.dense_solves,
+                 dense_updates=self.dense_updates)
         return d
 
 
@@ -130,9 +132,12 @@ class CondensedSolver:
         self.B_local = self.B[:, self.r0:self.r1].tocsr()  # 2m x nloc
         self.F = system.friction_vector
         self._F0 = self.F == 0.0
+        self.no_tangent = np.asarray(system.no_tangent, dtype=bool)
+        self._updater = None  # factorization updates of the exact method's branches (_Updater)
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
+        self._lu_extra: dict = {}  # key -> (lu, rows of S on the support, positions of slip nodes' lam_n)
         self._loads: list = []  # [(f, w)]
         #: wall times [s] of the set-up: "factorization" (KSP set-up of K), "condensation" (S)
         self.timings = {}
@@ -440,17 +445,18 @@ class CondensedSolver:
 
     # ------------------------------------------------------------ dense part
     def matrix(self, Z: InactiveSets) -> np.ndarray:
-        """M(Z) (2m x 2m) of the condensed DirNeu system."""
+        """M(Z) (2m x 2m) of the condensed DirNeu system (a node without tangential unknown has the
+        unit row lam_t = 0)."""
         m = self.m
         M = np.zeros((2 * m, 2 * m))
         idx = np.arange(m)
-        act_n, act_t = ~Z.nu, ~Z.it
+        act_n, act_t = ~Z.nu, ~Z.it & ~self.no_tangent
         M[:m][act_n] = self.S[:m][act_n]
         M[idx[Z.nu], idx[Z.nu]] = 1.0
         M[m:][act_t] = self.S[m:][act_t]
-        it = np.flatnonzero(Z.it)
+        it = np.flatnonzero(~act_t)
         M[m + it, m + it] = 1.0
-        sgn = Z.tp.astype(float) - Z.tm.astype(float)
+        sgn = (Z.tp.astype(float) - Z.tm.astype(float)) * ~self.no_tangent
         M[m + it, it] = -self.F[it] * sgn[it]
         return M
 
@@ -458,7 +464,7 @@ class CondensedSolver:
         m = self.m
         r = np.zeros(2 * m)
         r[:m] = np.where(Z.nu, 0.0, w[:m])
-        r[m:] = np.where(Z.it, 0.0, w[m:])
+        r[m:] = np.where(Z.it | self.no_tangent, 0.0, w[m:])
         return r
 
     def _factor(self, Z: InactiveSets):
@@ -484,9 +490,10 @@ class CondensedSolver:
         """(rows, closed, slip, coef) of the reduced system of the sets (nu, tp, tm), see :meth:`_factor`."""
         act_n = ~nu
         it = tp | tm
+        no_t = self.no_tangent  # nodes without tangential unknown: lam_t = 0 whatever the sets
         closed = act_n.nonzero()[0]
-        rows = np.concatenate([closed, self.m + (~it).nonzero()[0]])  # = the free unknowns
-        slip = (it & act_n).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
+        rows = np.concatenate([closed, self.m + (~it & ~no_t).nonzero()[0]])  # = the free unknowns
+        slip = (it & act_n & ~no_t).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
         coef = self.F[slip] * (tp[slip].astype(float) - tm[slip].astype(float))
         return rows, closed, slip, coef
 
@@ -496,11 +503,16 @@ class CondensedSolver:
         tangentially free), cached under the caller's ``key``.  The same reduced system as
         :meth:`_factor` for the equivalent InactiveSets, with fewer array operations."""
         closed = (codes != _OPEN).nonzero()[0]
-        rows = np.concatenate([closed, self.m + (codes == _STICK).nonzero()[0]])  # = the free unknowns
+        # the free unknowns (a node without tangential DOFs sticks with lam_t = 0)
+        rows = np.concatenate([closed, self.m + ((codes == _STICK) & ~self.no_tangent).nonzero()[0]])
         slip = (codes >= _SLIP_P).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
         coef = self.F[slip] * _SLIP_SIGN[codes[slip]]
-        return self._factor_reduced(key, rows, closed, slip, coef, lambda: repr(
-            InactiveSets(codes == _OPEN, (codes == _OPEN) | (codes == _SLIP_P), codes == _SLIP_M)))
+        return self._factor_reduced(key, rows, closed, slip, coef, lambda: self._describe_codes(codes))
+
+    @staticmethod
+    def _describe_codes(codes) -> str:
+        """The InactiveSets of canonical state codes, as text (for error messages)."""
+        return repr(InactiveSets(codes == _OPEN, (codes == _OPEN) | (codes == _SLIP_P), codes == _SLIP_M))
 
     def _factor_reduced(self, key, rows, closed, slip, coef, describe):
         """LU of the reduced system with unknowns lam[rows] (``closed``: the closed nodes, the
@@ -564,32 +576,76 @@ class CondensedSolver:
             lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
 
-    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False) -> tuple:
+    def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False,
+                    plain: bool = False) -> tuple:
         """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
 
-        ``refine``: one step of iterative refinement (the residual of the reduced system, i.e. the
+        ``refine``: two steps of iterative refinement (the residual of the reduced system, i.e. the
         gaps w - S lam of its equation rows, solved with the same LU) and a third result: the
-        change it made to the indicators (3m x k), an estimate of their rounding error."""
-        L = self.multipliers_many(None, W, key=key, codes=codes)
-        entry = self._lu[key]
-        support = entry[5]
-        if not refine:
-            return L, self.indicators(L, W, support=support)
-        lu, piv, rows, slip, coef, _ = entry
-        m = self.m
-        D = np.zeros_like(L)
-        if rows.size:
-            R = W.take(rows, axis=0) - self.S.take(rows, axis=0).take(support, axis=1) @ L.take(support, axis=0)
-            D[rows] = _getrs(lu, piv, R, trans=1)[0]
+        change the second made to the indicators (3m x k), an estimate of their rounding error;
+        otherwise one step (none with ``plain``: rates and perturbation responses of the
+        intermediate branches of a degenerate point, which only order its pivots)."""
+        if self.use_updates:
+            if self._updater is None:
+                self._updater = _Updater(self)
+            return self._updater.branch_data(W, codes, refine)
+        entry = self._lu.get(key)
+        if entry is None:
+            entry = self._factor_codes(key, np.asarray(codes))
+        else:
+            self._lu.move_to_end(key)
+        lu, piv, rows, slip, coef, support = entry
+        extra = self._lu_extra.get(key)
+        if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
+            if len(self._lu_extra) > 2 * max(64, self.options.cache):
+                self._lu_extra.clear()
+            extra = (lu, self.S.take(support, axis=0), np.searchsorted(rows[:rows.size - (rows >= self.m).sum()],
+                                                                       slip))
+            self._lu_extra[key] = extra
+        _, Ssup, pos = extra
+        m, c = self.m, W.shape[1]
+        if not rows.size:
+            L = np.zeros((2 * m, c))
+            G = self._ind(L, W, np.zeros_like(W))
+            return (L, G, np.zeros_like(G)) if refine else (L, G)
+        Wr = W[rows]
+
+        def expand(x):  # free unknowns -> (lam_n, lam_t), and S times it
+            full = np.zeros((2 * m, c))
+            full[rows] = x
             if slip.size:
-                D[m + slip] = coef[:, None] * D[slip]
-            self.stats.dense_solves += W.shape[1]
-        L += D
-        G = self.indicators(L, W, support=support)
-        Eg = np.abs(self.indicators(D, np.zeros_like(W), support=support))
-        return L, G, Eg
+                full[m + slip] = coef[:, None] * x[pos]
+            return full, Ssup.T @ full[support]
+
+        L, SL = expand(_getrs(lu, piv, Wr, trans=1)[0])
+        steps = 2 if refine else (0 if plain else 1)  # refine twice: the second correction measures the error
+        for _ in range(steps):
+            D, SD = expand(_getrs(lu, piv, Wr - SL[rows], trans=1)[0])
+            L = L + D
+            SL = SL + SD
+        self.stats.dense_solves += (1 + steps) * c
+        G = self._ind(L, W, SL)
+        if not refine:
+            return L, G
+        return L, G, np.abs(self._ind(D, np.zeros_like(W), SD))
+
+    def _ind(self, lam, w, Slam):
+        """The indicators (a, bp, bm) stacked (3m x k) from lam, w and S lam."""
+        m = self.m
+        g = lam + self.system.rho * (w - Slam)
+        F_lam_n = self.F[:, None] * lam[:m]
+        b = g[m:]
+        return np.concatenate((g[:m], b - F_lam_n, b + F_lam_n))
+
+    @property
+    def use_updates(self) -> bool:
+        """Are the exact method's branches solved by updates of one kept factorization
+        (:class:`_Updater`)?  ``options.updates``: True, False or None (default: when 2m >=
+        UPDATE_MIN_SIZE)."""
+        choice = getattr(self.options, "updates", None)
+        return (2 * self.m >= UPDATE_MIN_SIZE) if choice is None else bool(choice)
 
     def indicators(self, lam: np.ndarray, w: np.ndarray, support: Optional[np.ndarray] = None) -> np.ndarray:
         """The indicators (17) stacked (a, bp, bm) (3m, or 3m x k for columns) of DirNeu's
@@ -736,6 +792,254 @@ class CondensedSolver:
                 obj.destroy()
         self._lu.clear()
         self._loads.clear()
+
+
+def _sym_times(S, X):
+    """S X for a symmetric S, reading only the rows of S where X has non-zero rows."""
+    nz = (X != 0.0).any(axis=1).nonzero()[0]
+    if 4 * nz.size >= X.shape[0]:
+        return S @ X
+    return S[nz].T @ X[nz]
+
+
+#: The exact method's branches are solved by updates of one kept factorization (:class:`_Updater`)
+#: from this many multipliers (2m) on; below, a fresh LU per branch is cheaper than the updates'
+#: bookkeeping.
+UPDATE_MIN_SIZE = 160
+#: Refactor the kept system when a refinement step changes the multipliers by more than this
+#: (relative): the updates have lost accuracy.
+UPDATE_REFINE_RTOL = 1e-8
+
+
+class _Updater:
+    """DirNeu's condensed system for neighbouring sets by updates of one kept factorization.
+
+    In the full 2m x 2m form M(Z) lam = r(Z, w) (see :meth:`CondensedSolver.matrix`) each node owns
+    two rows that depend only on its own state: an S row (closed normal row; sticking tangential
+    row) or a unit row (lam_n = 0 or lam_t = 0 of an open node; lam_t - F sgn lam_n = 0 of a
+    slipping one).  A branch whose sets differ from a kept base Z0 at the nodes D therefore has
+    M(Z) = M(Z0) + U V^T with U = the unit columns of D's rows and V^T = the change of those rows
+    (rank 2|D|), and (Sherman-Morrison-Woodbury)
+
+        M(Z)^-1 b = y - Zc C^-1 V^T y,   y = M(Z0)^-1 b,   Zc = M(Z0)^-1 U,   C = I + V^T Zc.
+
+    The S rows are scaled by rho (rho S is of the size of the unit rows: the indicators' own
+    weighting), so that V, C and the refinement residual mix no scales.
+    M(Z0) is kept as the LU of its reduced system (:meth:`CondensedSolver._factor_codes`); the
+    columns Zc of every node that has differed from Z0 and the products S[rows of those nodes] Zc
+    are kept too, so a branch costs one solve with the kept LU, O(m |D|) for V^T y and O(|D|^3)
+    for C -- O(m^2) per branch instead of the O(m^3) of a fresh factorization.  The base is
+    refactored at the branch being solved when |D| would exceed ``max_rank`` (balancing the
+    refactorization against C: (2m)^(3/4) or so), or when a step of iterative refinement against
+    M(Z) itself shows that the updates lost accuracy.  Every solve is refined once against M(Z)
+    (its rows are those of S and unit rows), which also measures the result's rounding error."""
+
+    def __init__(self, solver, max_rank: Optional[int] = None):
+        self.s = solver
+        m = solver.m
+        self.m = m
+        # C costs O((2|D|)^3) per branch, a refactorization O(k^3) per max_rank branches: balanced
+        # near |D| ~ 0.45 k^(3/4) (k <= 2m the size of the reduced system)
+        self.max_rank = int(max_rank) if max_rank else max(4, min(400, int(0.45 * (2 * m) ** 0.75)))
+        self.rho = solver.system.rho
+        self.codes0 = None
+        self.refactorizations = 0
+        self.updates = 0
+        self.reasons = {}
+
+    # ------------------------------------------------------------ node rows
+    def _types(self, codes):
+        """(closed, S tangential row, slip coefficient) per node of the state codes."""
+        s = self.s
+        closed = codes != _OPEN
+        t_s = (codes == _STICK) & ~s.no_tangent
+        coef = s.F * _SLIP_SIGN[codes]
+        return closed, t_s, coef
+
+    def rebase(self, codes):
+        """Factor M(codes) (its reduced system) and start over with it as the base."""
+        s = self.s
+        codes = np.asarray(codes, dtype=np.int8)
+        self.entry0 = s._factor_codes(b"updater-base", codes)
+        s._lu.pop(b"updater-base", None)  # kept here, not in the solver's cache
+        self.codes0 = codes.copy()
+        self.types0 = self._types(codes)
+        lu, piv, rows, slip, coef, support = self.entry0
+        fixed = np.ones(2 * self.m, dtype=bool)
+        fixed[rows] = False
+        self.fixed0 = fixed
+        self.pos = {}  # node -> its index in the cache
+        self.nodes = []
+        self.Zc = np.empty((2 * self.m, 16))  # columns 2q, 2q + 1: M0^-1 e_j, M0^-1 e_(m+j) of cached node q
+        self.SZ = np.empty((16, 16))  # rows 2q, 2q + 1: S[j] Zc, S[m + j] Zc
+        self.refactorizations += 1
+
+    def _base_solve(self, B):
+        """M(Z0)^-1 B (2m x c), the S rows of M(Z0) scaled by rho."""
+        lu, piv, rows, slip, coef, _ = self.entry0
+        m, S = self.m, self.s.S
+        X = np.array(B, dtype=float, copy=True)
+        fixed = self.fixed0
+        nz = (fixed & (X != 0.0).any(axis=1)).nonzero()[0]  # fixed unknowns with non-zero values
+        if rows.size:
+            rhs = X[rows] / self.rho
+            if nz.size:
+                rhs = rhs - S[np.ix_(rows, nz)] @ X[nz]
+            X[rows] = _getrs(lu, piv, rhs, trans=1)[0]
+        if slip.size:
+            X[m + slip] += coef[:, None] * X[slip]
+        return X
+
+    def _ensure(self, D):
+        """Cache Zc and the S products for the nodes D."""
+        new = [int(j) for j in D if int(j) not in self.pos]
+        if not new:
+            return
+        m, S = self.m, self.s.S
+        q0 = len(self.nodes)
+        q1 = q0 + len(new)
+        if 2 * q1 > self.Zc.shape[1]:
+            cap = max(2 * q1, 2 * self.Zc.shape[1])
+            Zc = np.empty((2 * m, cap))
+            Zc[:, :2 * q0] = self.Zc[:, :2 * q0]
+            SZ = np.empty((cap, cap))
+            SZ[:2 * q0, :2 * q0] = self.SZ[:2 * q0, :2 * q0]
+            self.Zc, self.SZ = Zc, SZ
+        idx = np.array(new)
+        U = np.zeros((2 * m, 2 * len(new)))
+        U[idx, 2 * np.arange(len(new))] = 1.0
+        U[m + idx, 2 * np.arange(len(new)) + 1] = 1.0
+        self.Zc[:, 2 * q0:2 * q1] = self._base_solve(U)
+        for k, j in enumerate(new):
+            self.pos[j] = q0 + k
+        self.nodes.extend(new)
+        rows_all = self._rows(np.array(self.nodes))
+        Zall = self.Zc[:, :2 * q1]
+        self.SZ[2 * q0:2 * q1, :2 * q1] = S[rows_all[2 * q0:2 * q1]] @ Zall
+        self.SZ[:2 * q0, 2 * q0:2 * q1] = S[rows_all[:2 * q0]] @ self.Zc[:, 2 * q0:2 * q1]
+
+    def _rows(self, nodes):
+        """The matrix rows of the nodes, interleaved: j, m + j per node."""
+        out = np.empty(2 * nodes.size, dtype=np.intp)
+        out[0::2], out[1::2] = nodes, self.m + nodes
+        return out
+
+    def _vt(self, D, types, X, SX):
+        """V^T X (2|D| x c, rows interleaved per node) with SX = S[rows of D] X."""
+        closed, t_s, coef = types
+        closed0, t_s0, coef0 = self.types0
+        Xn, Xt = X[D], X[self.m + D]
+        SXn, SXt = self.rho * SX[0::2], self.rho * SX[1::2]
+        out = np.empty((2 * D.size, X.shape[1]))
+        out[0::2] = np.where(closed[D, None], SXn, Xn) - np.where(closed0[D, None], SXn, Xn)
+        out[1::2] = (np.where(t_s[D, None], SXt, Xt - coef[D, None] * Xn)
+                     - np.where(t_s0[D, None], SXt, Xt - coef0[D, None] * Xn))
+        return out
+
+    def _solver(self, types, D):
+        """B -> M(Z)^-1 B by the Woodbury identity on the kept base (C factored once), or None when
+        C is singular."""
+        if not D.size:
+            return self._base_solve
+        q = np.array([self.pos[int(j)] for j in D])
+        cols = np.empty(2 * q.size, dtype=np.intp)
+        cols[0::2], cols[1::2] = 2 * q, 2 * q + 1
+        ZcD = self.Zc[:, cols]
+        C = self._vt(D, types, ZcD, self.SZ[np.ix_(cols, cols)])
+        C[np.diag_indices_from(C)] += 1.0
+        lu, piv, info = _getrf(C)
+        d = np.abs(lu.diagonal())
+        if info != 0 or not d.max() < np.inf or d.min() <= 1e-14 * max(d.max(), 1e-300):
+            return None
+        SD = self.s.S[self._rows(D)]
+
+        def solve(B):
+            y = self._base_solve(B)
+            return y - ZcD @ _getrs(lu, piv, self._vt(D, types, y, SD @ y))[0]
+
+        return solve
+
+    def _residual(self, types, W, X, SX):
+        """r(Z, W) - M(Z) X (S rows scaled by rho), with SX = S X."""
+        m, rho = self.m, self.rho
+        closed, t_s, coef = types
+        R = np.empty_like(X)
+        R[:m] = np.where(closed[:, None], rho * (W[:m] - SX[:m]), -X[:m])
+        R[m:] = np.where(t_s[:, None], rho * (W[m:] - SX[m:]), -(X[m:] - coef[:, None] * X[:m]))
+        return R
+
+    def branch_data(self, W, codes, refine=True):
+        """(lam, g[, Eg]) as :meth:`CondensedSolver.branch_data`, by updates."""
+        s = self.s
+        m = self.m
+        codes = np.asarray(codes, dtype=np.int8)
+        types = self._types(codes)
+        closed, t_s, coef = types
+        if self.codes0 is None:
+            self.rebase(codes)
+        closed0, t_s0, coef0 = self.types0
+        D = ((closed != closed0) | (t_s != t_s0) | (coef != coef0)).nonzero()[0]
+        if D.size > self.max_rank or len(self.nodes) + np.setdiff1d(D, self.nodes).size > 2 * self.max_rank:
+            self.reasons["rank"] = self.reasons.get("rank", 0) + 1
+            self.rebase(codes)
+            D = D[:0]
+        B = np.zeros_like(W)
+        B[:m] = np.where(closed[:, None], self.rho * W[:m], 0.0)
+        B[m:] = np.where(t_s[:, None], self.rho * W[m:], 0.0)
+        for attempt in range(2):
+            self._ensure(D)
+            solve = self._solver(types, D)
+            L = None if solve is None else solve(B)
+            if L is None:  # M(Z) singular (C singular with a regular base), or the updates broke down
+                if attempt == 0 and D.size:
+                    self.reasons["singular"] = self.reasons.get("singular", 0) + 1
+                    self.rebase(codes)
+                    D = D[:0]
+                    continue
+                raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for "
+                                          f"{s._describe_codes(codes)}")
+            SL = _sym_times(s.S, L)
+            # iterative refinement against M(Z) itself; the updates are trusted while it contracts
+            # (each correction well below the previous one), else the base is refactored here
+            sizes, ok = [], True
+            Eg_scale = 1.0
+            for step in range(3):
+                Dl = solve(self._residual(types, W, L, SL))
+                size = np.abs(Dl).max(initial=0.0)
+                sizes.append(size)
+                if step and size <= 1e-3 * sizes[0]:
+                    # converged: the last correction only measures the error (no product with S
+                    # for it; its indicators are the previous correction's, scaled)
+                    Eg_scale = size / max(sizes[-2], 1e-300)
+                    break
+                L = L + Dl
+                SDl = _sym_times(s.S, Dl)
+                SL = SL + SDl
+                applied = (Dl, SDl)
+                if step and size > 0.25 * sizes[-2]:
+                    ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
+                    break
+            if ok or attempt == 1 or not D.size:
+                break
+            self.reasons["refine"] = self.reasons.get("refine", 0) + 1
+            self.rebase(codes)  # the updates lost accuracy: start over from this branch
+            D = D[:0]
+        s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
+        s.stats.dense_updates += 1
+        self.updates += 1
+        rho = s.system.rho
+        F = s.F[:, None]
+
+        def ind(lam, w, Slam):
+            g = lam + rho * (w - Slam)
+            b = g[m:]
+            return np.concatenate((g[:m], b - F * lam[:m], b + F * lam[:m]))
+
+        G = ind(L, W, SL)
+        if not refine:
+            return L, G
+        Eg = Eg_scale * np.abs(ind(applied[0], np.zeros_like(W), applied[1]))
+        return L, G, Eg
 
 
 def get_condensed_solver(system: ContactSystem, options: Optional[SolverOptions] = None) -> CondensedSolver:

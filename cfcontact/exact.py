@@ -87,8 +87,13 @@ PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
 #: cross-checked by enumerating the nodes' admissible states (all continuations, branch points).
 ENUMERATION_CHECK_NODES = 2
+#: Degenerate points crossing at most this many nodes are also crossed by the opposite
+#: perturbation, which finds a second continuation where there is one (a branch point).
+ALTERNATIVES_MAX_NODES = 6
 #: Kept for compatibility (the number of state combinations the enumeration cross-check tries).
 MAX_CANDIDATES = 4 ** ENUMERATION_CHECK_NODES
+#: Iterations of SSNM (in the multipliers, from 0) before the exact method starts by its homotopy.
+START_SSNM_ITERATIONS = 25
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -96,30 +101,49 @@ START_ENUMERATION_MAX_NODES = 8
 OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
 _A, _BP, _BM = 0, 1, 2
 
-# _CONS_SIGN[state, F == 0, indicator] = sign s of the constraint s * indicator >= 0 (0: none)
-_CONS_SIGN = np.zeros((4, 2, 3))
-for _st, _f0, _ind, _sg in ((OPEN, 0, _A, -1), (STICK, 0, _BP, -1), (STICK, 0, _BM, 1), (SLIP_P, 0, _A, 1),
-                            (SLIP_P, 0, _BP, 1), (SLIP_M, 0, _A, 1), (SLIP_M, 0, _BM, -1),
-                            (OPEN, 1, _A, -1), (SLIP_P, 1, _A, 1)):
-    _CONS_SIGN[_st, _f0, _ind] = _sg
-# _PIVOT[state, F == 0, indicator]: the state across the facet of that constraint (-1: an open
+# Node kinds: 0 = F > 0, 1 = F = 0 (open or tangentially free, "free" coded slip+), 2 = a node
+# without tangential unknown (its row of T vanishes, e.g. on a symmetry plane: open or closed with
+# lam_t = 0, "closed" coded stick).
+# _CONS_SIGN[state, kind, indicator] = sign s of the constraint s * indicator >= 0 (0: none)
+_CONS_SIGN = np.zeros((4, 3, 3))
+for _st, _k, _ind, _sg in ((OPEN, 0, _A, -1), (STICK, 0, _BP, -1), (STICK, 0, _BM, 1), (SLIP_P, 0, _A, 1),
+                           (SLIP_P, 0, _BP, 1), (SLIP_M, 0, _A, 1), (SLIP_M, 0, _BM, -1),
+                           (OPEN, 1, _A, -1), (SLIP_P, 1, _A, 1), (OPEN, 2, _A, -1), (STICK, 2, _A, 1)):
+    _CONS_SIGN[_st, _k, _ind] = _sg
+# _PIVOT[state, kind, indicator]: the state across the facet of that constraint (-1: an open
 # node closing with F > 0 slips in the direction of its T u; -2: no such constraint)
-_PIVOT = np.full((4, 2, 3), -2, dtype=np.int8)
-for _st, _f0, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0, _BM, SLIP_M),
-                            (SLIP_P, 0, _A, OPEN), (SLIP_P, 0, _BP, STICK), (SLIP_M, 0, _A, OPEN),
-                            (SLIP_M, 0, _BM, STICK), (OPEN, 1, _A, SLIP_P), (SLIP_P, 1, _A, OPEN)):
-    _PIVOT[_st, _f0, _ind] = _to
+_PIVOT = np.full((4, 3, 3), -2, dtype=np.int8)
+for _st, _k, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0, _BM, SLIP_M),
+                           (SLIP_P, 0, _A, OPEN), (SLIP_P, 0, _BP, STICK), (SLIP_M, 0, _A, OPEN),
+                           (SLIP_M, 0, _BM, STICK), (OPEN, 1, _A, SLIP_P), (SLIP_P, 1, _A, OPEN),
+                           (OPEN, 2, _A, STICK), (STICK, 2, _A, OPEN)):
+    _PIVOT[_st, _k, _ind] = _to
 # membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
 _SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
 
 
-def canonical_codes(sets: InactiveSets, friction) -> np.ndarray:
+def canonical_codes(sets: InactiveSets, friction, no_tangent=None) -> np.ndarray:
     """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices: an open
-    node is tangentially free, and a node with F = 0 is open or free (coded slip+; its stick state
-    gives the same solution when consistent, lam_t = 0)."""
+    node is tangentially free, a node with F = 0 is open or free (coded slip+; its stick state
+    gives the same solution when consistent, lam_t = 0), and a node without tangential unknown
+    (``no_tangent``) is open or closed (coded stick, lam_t = 0)."""
     F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
     codes = sets.state_codes().astype(np.int8)  # tp & tm -> 2 (slip+)
-    return np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes).astype(np.int8)
+    codes = np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes)
+    if no_tangent is not None:
+        codes = np.where((codes != OPEN) & np.asarray(no_tangent, dtype=bool), STICK, codes)
+    return codes.astype(np.int8)
+
+
+def _canon(system, sets) -> np.ndarray:
+    """:func:`canonical_codes` of sets of ``system``."""
+    return canonical_codes(sets, system.friction, system.no_tangent)
+
+
+def node_kinds(system) -> np.ndarray:
+    """Per node: 0 (F > 0), 1 (F = 0), 2 (no tangential unknown): the second index of the tables."""
+    return np.where(np.asarray(system.no_tangent, dtype=bool), 2,
+                    np.where(system.friction_vector == 0.0, 1, 0)).astype(np.intp)
 
 
 def sets_from_codes(codes) -> InactiveSets:
@@ -157,7 +181,7 @@ class _Line:
     ``tol_v`` and ``tol_s``: what counts as zero for a value at alpha_ref and for a rate."""
 
     __slots__ = ("codes", "key", "alpha", "lam", "dlam", "g", "dg", "cidx", "csgn", "cnode", "c", "dc",
-                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source")
+                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex")
 
     def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
                  source=None, eg=None):
@@ -180,6 +204,7 @@ class _Line:
             self.tol_v = np.full(self.cidx.size, self.ind_tv)
             self.tol_s = np.full(self.cidx.size, self.ind_ts)
         self.P = None  # indicator responses to the perturbation loads (3m x J), when needed
+        self.vertex = False  # an intermediate branch of a degenerate point (Context.vertex_line)
         self._sets = None
         self._Y = None  # (Y_ref, dY) with u, when formed
         self._full = full
@@ -247,6 +272,11 @@ class _CondensedData:
 
         return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
 
+    def rates(self, codes, key):
+        """(lam', g'): the rates of the branch of ``codes`` (one column: w2 - w1)."""
+        L, G = self.solver.branch_data(self.dw[:, None], key, codes, plain=True)
+        return L[:, 0], G[:, 0]
+
     def perturbation(self, line, E_loads):
         """Indicator responses (3m x J) of the branch to the perturbation loads."""
         if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
@@ -254,7 +284,7 @@ class _CondensedData:
             zero = solver.load_data_many([np.zeros(solver.n)])[:, 0]  # -(g; 0) when the system has a gap
             self.WE = solver.load_data_many([E_loads[:, j] for j in range(E_loads.shape[1])]) - zero[:, None]
         WE = self.WE[:, :E_loads.shape[1]]
-        _, G = self.solver.branch_data(WE, line.key, line.codes)
+        _, G = self.solver.branch_data(WE, line.key, line.codes, plain=line.vertex)
         return G
 
 
@@ -302,7 +332,7 @@ class _Context:
         self.lo, self.hi, self.rtol = lo, hi, rtol
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
-        self.F0_index = self.F0.astype(np.intp)
+        self.F0_index = node_kinds(system)  # the node kind of each node (second index of the tables)
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
         if hasattr(solver, "branch_data"):
@@ -331,6 +361,32 @@ class _Context:
         ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg)
         if len(self._lines) > 64:
             self._lines.clear()
+        self._lines[ck] = ln
+        return ln
+
+    def vertex_line(self, codes, alpha, at: _Line) -> _Line:
+        """The branch of ``codes`` through the point of the branch ``at`` (referenced at alpha): an
+        intermediate branch of a degenerate point.  Its indicators there are those of the point
+        (they depend on y only), so only its rates are solved for (condensed backend; the full
+        backend forms a line as usual).  Not for the path: the branch that leaves the point is
+        formed by :meth:`line`."""
+        if not self.condensed:
+            return self.line(codes, alpha)
+        codes = np.asarray(codes, dtype=np.int8)
+        key = codes.tobytes()
+        ck = (key, float(alpha), "vertex")
+        ln = self._lines.get(ck)
+        if ln is not None:
+            return ln
+        dlam, dg = self.data.rates(codes, b"exact:" + key)
+        ln = _Line(codes, b"exact:" + key, alpha, at.lam, dlam, at.g, dg, at.scale, 0.0, self.rtol, self.F0_index,
+                   None, at.source)
+        ln.ind_tv, ln.ind_ts = at.ind_tv, at.ind_ts  # the point's own precision, the rates' of the point's branch
+        ln.tol_v = np.broadcast_to(ln.ind_tv, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_tv) else np.full(
+            ln.cidx.size, ln.ind_tv)
+        ln.tol_s = np.broadcast_to(ln.ind_ts, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_ts) else np.full(
+            ln.cidx.size, ln.ind_ts)
+        ln.vertex = True
         self._lines[ck] = ln
         return ln
 
@@ -472,6 +528,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         return lambda J: -(sign * ctx.perturbation_rows(line, J)[e]) / line.dc[e]
 
     delta = offset_leaving(cur, k)  # offset of the vertex we are at, as a function of J
+    first = None  # the first branch across the point, formed in full: the point's values
     repair = False  # is k a constant constraint that is negative in the perturbation (not a root)?
     for _ in range(max(64, 8 * m)):
         node = int(cur.cnode[k])
@@ -497,7 +554,9 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         codes = cur.codes.copy()
         codes[node] = new
         try:
-            nxt = ctx.line(codes, a_star)
+            nxt = ctx.line(codes, a_star) if first is None else ctx.vertex_line(codes, a_star, first)
+            if first is None:
+                first = nxt
         except SingularSystemError as exc:
             raise _Unresolved("singular", f"the branch across the facet is singular: {exc}",
                               {"node": node, "from": STATE_NAMES[old], "to": STATE_NAMES[new]}) from None
@@ -526,7 +585,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         rate = d * nxt.dc
         cand = zero & (rate <= nxt.tol_s)
         if not cand.any():
-            return nxt, d, pivots, e
+            return _full_exit(ctx, nxt, a_star), d, pivots, e
         dec = cand & (rate < -nxt.tol_s)
         flat = (cand & ~dec).nonzero()[0]
         repair = False
@@ -543,7 +602,7 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
                 continue
         D = dec.nonzero()[0]
         if not D.size:
-            return nxt, d, pivots, e
+            return _full_exit(ctx, nxt, a_star), d, pivots, e
         if D.size == 1:
             k = int(D[0])
         else:
@@ -558,14 +617,19 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
     raise _Unresolved("degenerate", f"more than {max(64, 8 * m)} pivots at one point", {"pivots": pivots})
 
 
+def _full_exit(ctx, ln: _Line, alpha) -> _Line:
+    """The branch leaving a degenerate point, formed in full (an intermediate one has only rates)."""
+    return ctx.line(ln.codes, alpha) if ln.vertex else ln
+
+
 def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float) -> list:
     """States of ``node`` whose (closed) constraints hold at the indicator values g_star (3m)."""
     m = ctx.m
-    f0 = int(ctx.F0_index[node])
+    kind = int(ctx.F0_index[node])
     g = (float(g_star[node]), float(g_star[m + node]), float(g_star[2 * m + node]))
     out = []
-    for st in ((OPEN, SLIP_P) if f0 else (OPEN, STICK, SLIP_P, SLIP_M)):
-        signs = _CONS_SIGN[st, f0]
+    for st in ((OPEN, STICK, SLIP_P, SLIP_M), (OPEN, SLIP_P), (OPEN, STICK))[kind]:
+        signs = _CONS_SIGN[st, kind]
         if all(signs[i] * g[i] >= -tol for i in range(3) if signs[i]):
             out.append(st)
     return out
@@ -738,11 +802,13 @@ def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
             out.append((c, dd))
 
     # the opposite perturbation pairs the rays of the point differently; it applies when no
-    # constraint of ln vanishes identically along it (those are positive only under +eps)
+    # constraint of ln vanishes identically along it (those are positive only under +eps), and is
+    # tried at points of at most ALTERNATIVES_MAX_NODES nodes (it costs as much as the point)
     vals = ln.values(a_star)
     zero = np.abs(vals) <= ln.tol_v + abs(a_star - ln.alpha) * ln.tol_s
     zero[tied] = False
-    if not zero.any():
+    crossed = {p["node"] for p in pivots}
+    if not zero.any() and len(crossed) <= ALTERNATIVES_MAX_NODES:
         try:
             c2, d2, _, _ = _resolve(ctx, ln, s, a_star, tied, sign=-1)
             add(c2, d2)
@@ -837,9 +903,9 @@ class _Walk:
         return "point", path.add_point(self.branch, a_star)
 
     def point(self, index) -> PathPoint:
-        path = self.path
-        sol = Solution.from_y(self.ctx.system, path._ys[index], path._alphas[index], sets=self.ln.sets)
-        return PathPoint(index, path._alphas[index], self.branch.index, sol, path)
+        path, sets, system = self.path, self.ln.sets, self.ctx.system
+        return PathPoint(index, path._alphas[index], self.branch.index, path=path,
+                         make=lambda: Solution.from_y(system, path._ys[index], path._alphas[index], sets=sets))
 
     def run(self, callback=None) -> str:
         """Step to the end (or until ``callback`` stops the walk: "stopped by callback")."""
@@ -890,7 +956,7 @@ class ExactStepper(Stepper):
             except (KeyError, IndexError, TypeError, ValueError) as exc:
                 raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
             if codes.shape != (system.m,) or branch.orientation != s or branch.alpha_enter != alpha \
-                    or not np.array_equal(canonical_codes(branch.sets, system.friction), codes):
+                    or not np.array_equal(_canon(system, branch.sets), codes):
                 raise InputError(f"cannot resume: the resume state does not match branch {branch.index} of the path")
             tie_rtol = path.options.get("tie_rtol", TIE_RTOL)  # the path's
             if tie_rtol != options.tie_rtol:
@@ -903,7 +969,7 @@ class ExactStepper(Stepper):
             self.ctx.visited = visited
             self.path = path
             first = path.branches[0]
-            start_key = (_digest(canonical_codes(first.sets, system.friction).tobytes()), first.orientation)
+            start_key = (_digest(_canon(system, first.sets).tobytes()), first.orientation)
             self.walk = _Walk(self.ctx, path, self.ctx.line(codes, alpha), s, alpha, branch, n_trans0, start_key)
             path.status, path.resume_state = "running", None
             branch.alpha_exit = float("nan")
@@ -933,10 +999,15 @@ class ExactStepper(Stepper):
     def _finish(self, status) -> SolutionPath:
         self.finished = True
         path = self.path
+        tree = self.opts.tree and status in ("completed", "closed_loop", "stuck", "cycling")
+        if tree:
+            _follow_all(self.system, path, self.opts, self.solver)
         if path.lazy and getattr(self.solver, "size", 1) > 1:
             path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
         path.status = status
         self._update_stats()
+        if tree:
+            path.stats["tree"] = True
         path.resume_state = self.walk.state() if status == "stopped by callback" else None
         log.info("exact path: %s", path)
         return path
@@ -961,10 +1032,12 @@ class ExactStepper(Stepper):
 
 # ---------------------------------------------------------------------- start
 def _ssnm_start(ctx: _Context, alpha, y0):
-    """Sets of SSNM's solution at alpha, or None when SSNM does not converge."""
+    """Sets of SSNM's solution at alpha, or None when SSNM does not converge.  With the condensed
+    backend SSNM gets at most START_SSNM_ITERATIONS iterations (it converges in a few when it
+    does; at large F it can wander): the homotopy start reaches the solution by rule."""
     system, solver, opts = ctx.system, ctx.solver, ctx.opts
     if y0 is None and hasattr(solver, "ssnm_sets"):
-        return solver.ssnm_sets(system.load(alpha), opts.tol, opts.max_iter)
+        return solver.ssnm_sets(system.load(alpha), opts.tol, min(opts.max_iter, START_SSNM_ITERATIONS))
     try:
         return start_point(system, alpha, y0, opts, solver).sets
     except ConvergenceError:
@@ -1010,7 +1083,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets):
     if start_sets is not None:
         if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
             raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
-        codes = canonical_codes(start_sets, system.friction)
+        codes = _canon(system, start_sets)
         ln = ctx.line(codes, alpha)
         if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
             raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha}: "
@@ -1026,7 +1099,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets):
                      "the all-open state (%d transitions)", alpha, transitions)
         if start_sets is None:
             start_sets, how = _enumeration_start(system, alpha, path), "enumeration"
-        codes = canonical_codes(start_sets, system.friction)
+        codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
 
@@ -1095,7 +1168,8 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         ignored.
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint` (the start,
         the entry of every branch, the end); a truthy return stops the run
-    tree : also follow every alternative of every branch point (see :func:`trace_tree`)
+    tree : also follow every alternative of every branch point (see :func:`trace_tree`; the same
+        as ``options.tree``)
 
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
     (bracket (alpha, alpha)), every change (``Transition.changes``) and, at degenerate points,
@@ -1108,12 +1182,11 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     ``homotopy_transitions``.
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
+    if tree:
+        overrides["tree"] = True
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
-    path = ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
+    return ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
                         orientation=orientation).run(callback)
-    if tree and path.status in ("completed", "closed_loop", "stuck", "cycling"):
-        _follow_all(system, path, opts, solver)
-    return path
 
 
 def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, **kwargs) -> SolutionPath:
@@ -1157,9 +1230,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
         ctx = _ctx
     stats0 = ctx.solver.stats.as_dict()
     a = float(alt["alpha"])
-    codes = canonical_codes(InactiveSets.from_dict(alt["sets"]), system.friction)
+    codes = _canon(system, InactiveSets.from_dict(alt["sets"]))
     from_b = path.branches[ev.branch]
-    oc = canonical_codes(from_b.sets, system.friction)
+    oc = _canon(system, from_b.sets)
     changes = [{"node": int(i), "set": None, "from": STATE_NAMES[int(oc[i])], "to": STATE_NAMES[int(codes[i])]}
                for i in np.flatnonzero(oc != codes)] or [{"node": -1, "set": None}]
     d = int(alt["orientation"])
@@ -1188,11 +1261,12 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
 
 
 def _follow_all(system, path, options, solver):
-    """Follow every alternative of every branch point of ``path`` (also those found on the way)."""
+    """Follow every alternative of every branch point of ``path`` (also those found on the way).
+    The sub-runs take no callback (a checkpoint of the main run is taken before)."""
     span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
     ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
     for b in path.branches:
-        ctx.visited.setdefault(_digest(canonical_codes(b.sets, system.friction).tobytes()),
+        ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()),
                                (b.orientation, b.alpha_enter))
     i = 0
     while i < len(path.events):
@@ -1202,5 +1276,4 @@ def _follow_all(system, path, options, solver):
                 if not alt["chosen"] and str(k) not in ev.data.get("followed", {}):
                     follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
         i += 1
-    path.stats["tree"] = True
     return path

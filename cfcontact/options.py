@@ -49,6 +49,8 @@ class PathOptions:
     tol, max_iter: SSNM options for the start point.
     tie_rtol: relative tolerance under which an indicator counts as zero, beyond its measured
         rounding error (exact).
+    tree: after the path, follow every alternative of every branch point (exact; see
+        :func:`cfcontact.exact.trace_tree`).
     """
 
     h_min: float = _option(1e-5, "float", "smallest step; a failure at h_min is a transition", ("seed",))
@@ -62,6 +64,8 @@ class PathOptions:
     alpha_max: Optional[float] = _option(None, "float", "stop when alpha > alpha_max (default: max(start, end))")
     tol: float = _option(1e-9, "float", "SSNM tolerance of the start point")
     max_iter: int = _option(100, "int", "SSNM iterations of the start point")
+    tree: bool = _option(False, "bool", "follow every alternative of every branch point too (the whole tree "
+                                        "reachable from the start)", ("exact",))
     tie_rtol: float = _option(TIE_RTOL, "float", "indicator values within their rounding error plus tie_rtol x "
                                                  "their local scale vanish, in (0, 1e-2)", ("exact",))
 

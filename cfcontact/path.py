@@ -47,10 +47,7 @@ def select_solver(system: ContactSystem, method: str = "exact", backend: str = "
     """The system's cached DirNeu backend for ``method`` (see :func:`trace_path`'s ``backend``)."""
     check_backend(backend)
     if backend == "auto":
-        # (a node without tangential unknown, e.g. on a symmetry plane, makes the condensed
-        # matrix singular: the full backend takes lam_t = 0 there)
-        backend = "condensed" if method == "exact" and system.m <= CONDENSED_MAX_M and not system.no_tangent.any() \
-            else "full"
+        backend = "condensed" if method == "exact" and system.m <= CONDENSED_MAX_M else "full"
     if backend == "condensed":
         from cfcontact.condensed import get_condensed_solver
 
@@ -91,8 +88,7 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     backend : "full" (PETSc :class:`~cfcontact.ssnm.DirNeuSolver`: one factorization of J(Z) per
         branch), "condensed" (:class:`~cfcontact.condensed.CondensedSolver`: K factored once,
         dense systems in the contact unknowns) or "auto" (default: condensed for the exact method
-        when m <= CONDENSED_MAX_M and every contact node has a tangential unknown, full otherwise;
-        the seed method uses full, as the seed does)
+        when m <= CONDENSED_MAX_M, full otherwise; the seed method uses full, as the seed does)
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``,
         ``tie_rtol=1e-9``)

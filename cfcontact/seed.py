@@ -136,7 +136,10 @@ class SeedStepper(Stepper):
             if h > opts.h_min and step > 0:
                 self.h = max(opts.c_s * h, opts.h_min)
                 continue
-            return self._transition(step if step > 0 else h)
+            idx = self._transition(step if step > 0 else h)
+            if idx is _UNVERIFIED:
+                continue  # no point stored: the new branch's first accepted step is
+            return idx
 
     def _transition(self, h_fail) -> Optional[int]:
         """The branching algorithm at the last point (alpha, y) of the branch; index of the first
@@ -179,9 +182,17 @@ class SeedStepper(Stepper):
         self.branch = path.add_branch(Z_new, s_new, *branch_endpoints(system, solver, Z_new), origin=tr.index,
                                       parent=branch.index, alpha_enter=alpha)
         self.Z, self.s, self.alpha, self.y = Z_new, s_new, a_next, y_next
+        if not verified:
+            # the seed's rule was applied, but its point is no solution: it is not stored (the
+            # predictor-corrector goes on from it; its accepted steps are verified)
+            return _UNVERIFIED
         idx = path.add_point(self.branch, a_next, y_next)
         self.done = tkind == "transversal" and (a_next >= hi or a_next <= lo)
         return idx
+
+
+#: _transition's answer when the new branch's first point could not be verified (none is stored).
+_UNVERIFIED = object()
 
 
 # ------------------------------------------------------------------ branching

@@ -50,15 +50,26 @@ FORMAT_VERSION = 2
 SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
 
 
-@dataclass
 class PathPoint:
-    """An accepted point of the path (what the callback sees)."""
+    """An accepted point of the path (what the callback sees): its index, alpha, branch and the
+    live path.  ``solution`` (a :class:`~cfcontact.ssnm.Solution`) is formed when first asked
+    for: a callback that reads only alpha and the path forms no displacement (on a lazy path that
+    would cost a solve with K per point)."""
 
-    index: int
-    alpha: float
-    branch: int
-    solution: Solution
-    path: Optional["SolutionPath"] = field(default=None, repr=False, compare=False)  # the live path
+    __slots__ = ("index", "alpha", "branch", "path", "_solution", "_make")
+
+    def __init__(self, index: int, alpha: float, branch: int, solution=None, path=None, make=None):
+        self.index, self.alpha, self.branch, self.path = int(index), float(alpha), int(branch), path
+        self._solution, self._make = solution, make
+
+    @property
+    def solution(self) -> Solution:
+        if self._solution is None and self._make is not None:
+            self._solution, self._make = self._make(), None
+        return self._solution
+
+    def __repr__(self):
+        return f"PathPoint(index={self.index}, alpha={self.alpha!r}, branch={self.branch})"
 
 
 @dataclass
@@ -423,14 +434,32 @@ class SolutionPath:
         ok_t = np.where(free, ok_free, ok_tp & ok_tm)
         return bool(np.all(ok_nu & ok_t))
 
-    def branch_extent(self, branch) -> tuple:
-        """(lo, hi) of alpha covered by the path on this branch (transition to transition)."""
+    def branch_extent(self, branch, brackets: bool = False) -> tuple:
+        """(lo, hi) of alpha covered by the path on this branch (transition to transition).
+        ``brackets``: include the brackets of the branch's transitions (the seed method knows a
+        transition only to within its bracket: the branch may hold in part of it)."""
         b = self.branches[branch] if not isinstance(branch, Branch) else branch
         vals = [self._alphas[i] for i in b.points]
         for a in (b.alpha_enter, b.alpha_exit):
             if np.isfinite(a):
                 vals.append(a)
+        if brackets:
+            vals += self._bracket_ends().get(b.index, [])
         return (min(vals), max(vals)) if vals else (np.nan, np.nan)
+
+    def _bracket_ends(self) -> dict:
+        """{branch index: the finite bracket ends of its transitions} (cached per transition count)."""
+        cache = getattr(self, "_brackets", None)
+        if cache is None or cache[0] != len(self.transitions):
+            ends: dict = {}
+            for t in self.transitions:
+                lo, hi = t.bracket
+                if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
+                    for b in (t.from_branch, t.to_branch):
+                        ends.setdefault(b, []).extend((float(lo), float(hi)))
+            cache = (len(self.transitions), ends)
+            self._brackets = cache
+        return cache[1]
 
     def solutions_at(self, alpha: float, rtol: float = 1e-9) -> list:
         """Every distinct solution the path has at ``alpha``, evaluated exactly on each branch crossing it.
@@ -454,15 +483,25 @@ class SolutionPath:
         out, keys = [], []
         if extents is None:
             extents = np.array([self.branch_extent(b) for b in self.branches], dtype=float).reshape(-1, 2)
-        for j in np.flatnonzero((extents[:, 0] <= alpha) & (alpha <= extents[:, 1])):
+        candidates = ((extents[:, 0] <= alpha) & (alpha <= extents[:, 1])).nonzero()[0].tolist()
+        strict = set()
+        if self._bracket_ends():
+            # inside a transition's bracket (seed method): the branches on both sides, each only
+            # where it holds to rounding (near the transition both hold within a looser slack)
+            for j, ends in self._bracket_ends().items():
+                if j not in candidates and min(ends) <= alpha <= max(ends):
+                    candidates.append(j)
+                    strict.add(j)
+        for j in sorted(candidates):
             b = self.branches[j]
+            slack = 1e-12 if j in strict else 1e-9
             if b.index in self._Y:
                 y = self.branch_y(b, alpha)
-                if not self._consistent(y, b.sets):
+                if not self._consistent(y, b.sets, slack=slack):
                     continue
                 key = (y, False)
             else:
-                if not self._consistent(None, b.sets, ind=self._branch_indicators(b.index, alpha)):
+                if not self._consistent(None, b.sets, slack=slack, ind=self._branch_indicators(b.index, alpha)):
                     continue
                 key = (self.branch_lam(b.index, alpha), True)
             if any(_same_point(key, z, self.n, rtol) for z in keys):

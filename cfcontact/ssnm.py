@@ -208,11 +208,14 @@ class SolverOptions:
     solver_type: factorization package; None picks MUMPS when PETSc has it, else PETSc's LU
         (serial) or SuperLU_dist.
     cache: how many factorizations of J(Z) to keep (one per inactive-set combination).
+    updates: condensed backend, exact method: solve neighbouring branches by updates of one kept
+        factorization (True), by a fresh factorization each (False), or decide by size (None).
     """
 
     prefix: str = "cfcontact_"
     solver_type: Optional[str] = None
     cache: int = 4
+    updates: Optional[bool] = None
 
 
 @dataclass

@@ -59,12 +59,10 @@ def gathered(system):
         sol = cfcontact.ssnm(system, a, y0=start)
         out[f"y{a:g}"] = sol.y
         out[f"codes{a:g}"] = sol.sets.state_codes()
-        if not system.no_tangent.any():  # (the condensed backend has no rule for such nodes yet)
-            out[f"yc{a:g}"] = cfcontact.ssnm(system, a, y0=start, solver=condensed).y
-    if not system.no_tangent.any():
-        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
-        out["path_alphas"] = np.array([t.alpha for t in path.transitions])
-        out["path_nodes"] = np.array([t.node for t in path.transitions], dtype=int)
+        out[f"yc{a:g}"] = cfcontact.ssnm(system, a, y0=start, solver=condensed).y
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    out["path_alphas"] = np.array([t.alpha for t in path.transitions])
+    out["path_nodes"] = np.array([t.node for t in path.transitions], dtype=int)
     return out
 
 

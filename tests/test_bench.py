@@ -80,7 +80,8 @@ def test_bench_wrapper_and_bad_options(tmp_path):
     proc = subprocess.run([sys.executable, os.path.join(DEMOS, "bench.py"), "--help"], capture_output=True, text=True,
                           cwd=ROOT, env=env, timeout=120)
     assert proc.returncode == 0 and "--skip-large" in proc.stdout
-    for bad in (["--part", "C"], ["--sizes", "1e4,x"], ["--repeat", "0"], ["--min-time", "-1"]):
+    for bad in (["--part", "E"], ["--sizes", "1e4,x"], ["--repeat", "0"], ["--min-time", "-1"],
+                ["--part", "C", "--time-limit", "-3"], ["--part", "D", "--paths", "0"]):
         proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", *bad, "--output", str(tmp_path)],
                               capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
         assert proc.returncode == 2 and "error" in proc.stderr, (bad, proc.stderr)
@@ -114,3 +115,31 @@ def test_timed_runs_repeat_min_time_and_gc():
     assert 2 <= len(out) <= MAX_RUNS
     assert sum(durations[:-1]) < 0.1 <= sum(durations) + 1e-3
     assert not any(states) and gc.isenabled()
+
+
+@pytest.mark.slow
+def test_bench_parts_c_and_d_quick(tmp_path):
+    """Parts C (long interfaces) and D (hard cases) at their quick sizes: every row traced to the end
+    (no stuck, cycling, transition cap or start failure), with factorization updates on the strips,
+    small residuals, the slope of the time per transition, and the random load paths of the demo
+    models at F = 30 all completed."""
+    from cfcontact import bench_stress as bs
+
+    c = bs.part_c(quick=True, time_limit=120, log=lambda *a: None)
+    for r in c["rows"]:
+        assert r["status"] == "completed" and r["transitions"] > 20, r
+        assert r["dense_updates"] > r["refactorizations"] and r["worst_residual"] < 1e-9, r
+        assert r["peak_rss_gib"] > 0 and r["time_per_transition"] > 0
+    assert set(c["slope"]) == {"0.3", "30.0"}
+    d = bs.part_d(quick=True, paths=4, time_limit=120, log=lambda *a: None)
+    models = {r["model"] for r in d["rows"]}
+    assert models == {"strip", "cylinder", "punch", "closing"}
+    for r in d["rows"]:
+        assert r["status"] == "completed" and r["worst_residual"] < 1e-9, r
+    closing = [r for r in d["rows"] if r["model"] == "closing"]
+    assert all(r["max_vanishing"] >= r["m"] // 2 for r in closing), closing  # the whole interface at once
+    for name in ("demo", "blocks"):
+        s = d["random_loads"][name]["summary"]
+        assert s["runs"] == 4 and s["status"] == {"completed": 4}, s
+    text = bs.table(c["rows"] + d["rows"])
+    assert "s/trans." in text and "completed" in text

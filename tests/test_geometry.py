@@ -238,3 +238,24 @@ def test_seed_half_model_and_initial_gap_from_zero_load():
         assert np.allclose([t.alpha for t in path.transitions], ref, atol=2e-5)
         if system is half:  # the centre node only opens and closes
             assert not [c for t in path.transitions for c in t.changes if c["node"] == 0 and c["set"] != "nu"]
+
+
+def test_half_model_exact_path_condensed_equals_full():
+    """A node without tangential unknown (the half model's centre node, on the symmetry plane) is
+    open or closed with lam_t = 0 in the exact method; the condensed backend (with and without
+    factorization updates) gives the full backend's path."""
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.ssnm import SolverOptions
+
+    half = cfcontact.cylinder_on_block(**CYL, indentation=(0.005, 0.03), half=True, friction=0.5)
+    assert half.no_tangent[0]
+    ref = cfcontact.trace_path(half, 0.0, 1.0, method="exact", backend="full")
+    assert ref.status == "completed" and ref.transitions
+    for updates in (False, True):
+        p = cfcontact.trace_path(half, 0.0, 1.0, method="exact",
+                                 solver=CondensedSolver(half, SolverOptions(updates=updates)))
+        assert p.status == "completed"
+        assert [(t.node, t.set, t.kind) for t in p.transitions] == [(t.node, t.set, t.kind) for t in ref.transitions]
+        assert np.allclose([t.alpha for t in p.transitions], [t.alpha for t in ref.transitions], atol=1e-9)
+        for t in p.transitions:
+            assert cfcontact.verify(half, p.branch_y(t.to_branch, t.alpha), t.alpha).ok(1e-9)

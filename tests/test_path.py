@@ -201,3 +201,30 @@ def test_seed_checkpoint_is_a_save_and_resumes_to_the_same_path(tmp_path):
         np.testing.assert_array_equal(p.alphas, ref.alphas)
         np.testing.assert_array_equal(p.ys, ref.ys)
         assert [t.to_dict() for t in p.transitions] == [t.to_dict() for t in ref.transitions]
+
+
+def test_seed_answers_inside_transition_brackets(one_node_path):
+    """The seed method knows a transition only within its bracket (h_min wide): solutions_at there
+    evaluates the branches on both sides and keeps the consistent ones -- as many as the exact
+    path has, each a solution."""
+    system, path = one_node_path
+    exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.transitions
+    for t in path.transitions:
+        lo, hi = t.bracket
+        assert hi > lo
+        for a in (lo + 0.25 * (hi - lo), 0.5 * (lo + hi), lo + 0.75 * (hi - lo)):
+            sols = path.solutions_at(a)
+            assert len(sols) == exact.multiplicity(a) >= 1, (t, a)
+            for s in sols:
+                assert cfcontact.verify(system, s, a).ok(1e-10)
+
+
+def test_seed_never_stores_a_point_it_cannot_verify():
+    """A transition the seed's indicator cannot verify (random model, F = 30) is reported as an
+    event and the path goes on by the seed's rule, but its unverified point is not stored: every
+    stored point solves (1)-(3)."""
+    system = random_system(5, 5, friction=30.0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert "unverified_transition" in [e.kind for e in path.events]
+    assert max(cfcontact.verify(system, y, a).worst() for a, y in path.points) <= 1e-10

@@ -1,0 +1,369 @@
+"""Benchmark parts for long interfaces and hard cases of the exact method (see docs/bench.md).
+
+Part C -- long interfaces: two stacked strips of length L = m / 50 and height 1, m x 5 cells per
+body (triangles), clamped at their left ends, the free edges loaded by uniform tractions with
+seeded random values (:func:`strip`), m = 1000, 2000, 4000 contact nodes, F = 0.3 and 30.  Every
+row runs in a fresh subprocess (peak memory = its ``ru_maxrss``) and reports n, m, the time split
+assembly | factorization of K | condensation (S) | path, the transitions, the time per transition,
+the branches solved by factorization updates and the refactorizations, the worst residual of
+(1)-(3) over sampled stored points, and the log-log slope of the time per transition against m.
+A row stops at its time limit (``--time-limit``, status "time limit": the path so far is
+measured).
+
+Part D -- hard cases: the strips at m = 500, 1000, 2000 with uniform and random tractions (random:
+uniform tractions plus seeded random nodal forces on the free edges' nodes), F = 0.3 and 30; the
+cylinder on a block and the rounded punch pressed along their indentation paths; a degenerate point
+with many vanishing indicators (two blocks closing along their whole interface at once); and 200
+random load paths on each model of the demos (:mod:`cfcontact.demo_models`) at F = 30.  Reported:
+how many runs completed, got stuck, cycled, closed a loop, hit the transition cap or failed to
+start; the transitions; the degenerate points resolved (and the largest number of indicators
+vanishing at one); the time; the cost of a degenerate point against an ordinary branch; the cost
+of a start that SSNM could not find (homotopy) against one it found.
+
+Run:  cfcontact bench --part C [--quick] [--time-limit S]
+      cfcontact bench --part D [--quick] [--paths N]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+#: Part C: contact nodes of the strips, friction coefficients, seed of the tractions.
+C_SIZES = (1000, 2000, 4000)
+C_FRICTIONS = (0.3, 30.0)
+QUICK_C_SIZES = (100, 200)
+#: Part D: the strips' sizes, and the number of random load paths per demo model.
+D_SIZES = (500, 1000, 2000)
+QUICK_D_SIZES = (100,)
+D_PATHS = 200
+QUICK_D_PATHS = 10
+#: Worst residual over at most this many evenly spaced stored points of a row.
+VERIFY_POINTS = 60
+TRACTION = 1e7  # Pa: size of the random uniform tractions of the strips
+
+
+def peak_rss_gib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+
+
+def strip(m, friction, seed=0, kind="uniform", cells_across=5):
+    """Two stacked strips (L = m / 50, height 1, m x cells_across triangles per body, steel)
+    clamped at their left ends; the free edges (top1, right1, bottom2, right2) carry uniform
+    tractions with seeded random values, body 1's top pressed down.  ``kind="random"`` adds
+    seeded random nodal forces (of the tractions' size per edge node) on those edges' nodes."""
+    from cfcontact.models import two_blocks
+
+    rng = np.random.default_rng(seed)
+
+    def tractions():
+        t = {k: tuple(float(v) for v in rng.uniform(-TRACTION, TRACTION, 2)) for k in ("top1", "right1", "bottom2",
+                                                                                       "right2")}
+        t["top1"] = (t["top1"][0], -abs(t["top1"][1]) - 0.2 * TRACTION)
+        return t
+
+    t1, t2 = tractions(), tractions()
+    L = m / 50.0
+    system = two_blocks(nx=m, ny=cells_across, length=L, height=1.0, cell="triangle", friction=friction,
+                        tractions1=t1, tractions2=t2)
+    if kind == "random":
+        g = system.geometry
+        x, y = g.points[g.dof_node, 0], g.points[g.dof_node, 1]
+        on_edge = (np.isclose(y, 1.0) | np.isclose(y, -1.0) | np.isclose(x, L)) & ~np.isclose(x, 0.0)
+        h = L / m
+        f1, f2 = system.loads_numpy()
+        f1 = f1 + on_edge * rng.uniform(-1, 1, system.n) * TRACTION * h
+        f2 = f2 + on_edge * rng.uniform(-1, 1, system.n) * TRACTION * h
+        system = system.with_loads(f1, f2)
+    elif kind != "uniform":
+        raise ValueError(kind)
+    return system
+
+
+def _verify_sample(system, path, solver):
+    from cfcontact.report import worst_residual
+
+    P = len(path.alphas)
+    idx = None if P <= VERIFY_POINTS else np.unique(np.linspace(0, P - 1, VERIFY_POINTS).round().astype(int))
+    return worst_residual(system, path, solver, indices=idx)
+
+
+def worker(spec) -> dict:
+    """One row of Part C / D: build, factor, trace (time-limited), measure."""
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()
+    import cfcontact
+    from cfcontact.condensed import CondensedSolver
+
+    res = dict(spec, stage="assembly")
+
+    def dump():
+        print("BENCH-PARTIAL " + json.dumps(res), flush=True)
+
+    t0 = time.perf_counter()
+    if spec["model"] == "strip":
+        system = strip(spec["m"], spec["friction"], spec.get("seed", 0), spec.get("kind", "uniform"))
+    elif spec["model"] in ("cylinder", "punch"):
+        system = _pressed(spec["model"], spec["friction"], spec.get("size"))
+    elif spec["model"] == "closing":
+        system = _closing(spec["m"], spec["friction"])
+    else:
+        raise ValueError(spec["model"])
+    res.update(n=system.n, m=system.m, assembly_time=time.perf_counter() - t0, stage="factorization")
+    dump()
+    t0 = time.perf_counter()
+    solver = CondensedSolver(system)
+    t_setup = time.perf_counter() - t0
+    t_fact = sum(PETSc.Log.Event(e).getPerfInfo()["time"]
+                 for e in ("MatLUFactorSym", "MatLUFactorNum", "MatCholFctrSym", "MatCholFctrNum"))
+    res.update(factorization_time=t_fact, condensation_time=solver.timings["condensation"],
+               setup_other_time=t_setup - t_fact - solver.timings["condensation"], stage="path")
+    dump()
+    limit = float(spec.get("time_limit", 600.0))
+    branch_times = []
+    last = [time.perf_counter()]
+
+    def callback(point):
+        now = time.perf_counter()
+        branch_times.append(now - last[0])
+        last[0] = now
+        return now - t0 > limit
+
+    t0 = time.perf_counter()
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=callback)
+    t_path = time.perf_counter() - t0
+    st = solver.stats.as_dict()
+    res.update(path_time=t_path, status="time limit" if path.status == "stopped by callback" else path.status,
+               transitions=len(path.transitions), folds=len(path.folds),
+               time_per_transition=t_path / max(1, len(path.transitions)),
+               dense_updates=st["dense_updates"], refactorizations=st["dense_factorizations"],
+               start=path.stats.get("start"), degenerate_points=path.stats.get("degenerate_points", 0),
+               max_vanishing=path.stats.get("max_vanishing", 0), branch_points=path.stats.get("branch_points", 0),
+               events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message[:300]} for e in path.events][:10],
+               rss_after_path_gib=peak_rss_gib(), stage="verify")
+    degenerate = [i for i, t in enumerate(path.transitions) if t.pivots]
+    if degenerate and len(branch_times) > 1:
+        # branch_times[i + 1]: from the entry of branch i to that of branch i + 1 (transition i)
+        worst = max(branch_times[i + 1] for i in degenerate if i + 1 < len(branch_times))
+        ordinary_times = [branch_times[i + 1] for i in range(len(path.transitions))
+                          if i not in set(degenerate) and i + 1 < len(branch_times)]
+        if spec["model"] == "closing":  # its path has no ordinary branch: those of the sheared model
+            ref = _closing(spec["m"], spec["friction"], shear=True)
+            ordinary_times = _branch_times(ref, CondensedSolver(ref))[1:]
+        ordinary = float(np.median(ordinary_times)) if ordinary_times else float("nan")
+        res.update(ordinary_branch_time=ordinary, worst_degenerate_time=float(worst),
+                   degenerate_cost_ratio=float(worst / ordinary) if ordinary > 0 else None)
+    dump()
+    t0 = time.perf_counter()
+    res["worst_residual"] = _verify_sample(system, path, solver)
+    res["verify_time"] = time.perf_counter() - t0
+    total = res["assembly_time"] + t_setup + t_path
+    res.update(total_time=total, ratio=total / (res["assembly_time"] + t_fact), peak_rss_gib=peak_rss_gib(),
+               stage="done")
+    return res
+
+
+def _branch_times(system, solver) -> list:
+    """Wall time from one accepted point of the exact path to the next (one branch each)."""
+    import cfcontact
+
+    times, last = [], [time.perf_counter()]
+
+    def tick(point):
+        now = time.perf_counter()
+        times.append(now - last[0])
+        last[0] = now
+
+    cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=tick)
+    return times
+
+
+def _pressed(model, friction, size=None):
+    """The cylinder on a block / the rounded punch pressed along their indentation path."""
+    import cfcontact
+
+    if model == "cylinder":
+        return cfcontact.cylinder_on_block(friction=friction, indentation=(0.0, 0.03),
+                                           **({"size": size} if size else {}))
+    return cfcontact.rounded_punch(friction=friction, indentation=(0.0, 0.03), **({"size": size} if size else {}))
+
+
+def _closing(m, friction, shear=False):
+    """Two blocks whose whole interface closes at one alpha: a separating traction on body 1's
+    top, f2 = -f1, so at alpha = 1/2 the load vanishes and every indicator of the interface with
+    it (a degenerate point with all m nodes).  ``shear``: f2 = -f1 plus a shear, which makes the
+    nodes close and slip one after another (ordinary transitions, the reference of the cost of
+    a branch on the same model)."""
+    from cfcontact.models import two_blocks
+
+    p = 1e7
+    t1 = (-0.05 * p, p)
+    t2 = (0.25 * p, -p) if shear else (-t1[0], -t1[1])
+    return two_blocks(nx=m, ny=max(2, m // 3), cell="quadrilateral", friction=friction,
+                      tractions1={"top1": t1}, tractions2={"top1": t2}, clamp=("left1", "left2", "right2"))
+
+
+def run_row(spec, timeout, log=print) -> dict:
+    cmd = [sys.executable, "-m", "cfcontact.bench_stress", "--worker", json.dumps(spec)]
+    env = dict(os.environ)
+    package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = package_parent + os.pathsep + env.get("PYTHONPATH", "")
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+        out, err, rc = proc.stdout, proc.stderr, proc.returncode
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        err, rc = f"timeout after {timeout} s", "timeout"
+    res = dict(spec)
+    for line in out.splitlines():
+        if line.startswith("BENCH-PARTIAL ") or line.startswith("BENCH-RESULT "):
+            res.update(json.loads(line.split(" ", 1)[1]))
+    res["returncode"], res["elapsed"] = rc, time.perf_counter() - t0
+    if rc != 0:
+        res["error"] = (err or "")[-2000:]
+        log(f"    FAILED ({rc}) in stage {res.get('stage')}: {(err or '').strip().splitlines()[-1:] or ''}")
+    return res
+
+
+def _row_text(r):
+    f = lambda k, w=8, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
+    return (f"{r.get('model', ''):>8} {r.get('kind', ''):>7} {r.get('n', '-'):>7} {r.get('m', '-'):>5} "
+            f"{r.get('friction', 0):>5g} {f('assembly_time')} {f('factorization_time')} {f('condensation_time')} "
+            f"{f('path_time')} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
+            f"{r.get('dense_updates', '-'):>7} {r.get('refactorizations', '-'):>6} {f('peak_rss_gib', 6)} "
+            f"{r.get('worst_residual', float('nan')):>9.1e} {f('ratio', 6, 1)} {r.get('status', r.get('stage')):>11}")
+
+
+def table(rows) -> str:
+    head = (f"{'model':>8} {'loads':>7} {'n':>7} {'m':>5} {'F':>5} {'assembly':>8} {'factor':>8} {'condense':>8} "
+            f"{'path':>8} {'trans.':>7} {'s/trans.':>9} {'updates':>7} {'refact':>6} {'GiB':>6} {'residual':>9} "
+            f"{'ratio':>6} {'status':>11}")
+    return "\n".join([head, "-" * len(head)] + [_row_text(r) for r in rows])
+
+
+def slope(rows) -> dict:
+    """Log-log slope of the time per transition against m, per friction coefficient (least squares
+    over the rows with at least 20 transitions)."""
+    out = {}
+    for F in sorted({r["friction"] for r in rows}):
+        pts = [(r["m"], r["time_per_transition"]) for r in rows
+               if r["friction"] == F and r.get("transitions", 0) >= 20 and r.get("time_per_transition")]
+        if len(pts) >= 2:
+            x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+            out[str(F)] = float(np.polyfit(x, y, 1)[0])
+    return out
+
+
+def part_c(quick=False, time_limit=600.0, log=print) -> dict:
+    sizes = QUICK_C_SIZES if quick else C_SIZES
+    rows = []
+    for F in C_FRICTIONS:
+        for m in sizes:
+            log(f"  strip m = {m}, F = {F:g} ...")
+            rows.append(run_row({"model": "strip", "kind": "uniform", "m": m, "friction": F, "seed": 0,
+                                 "time_limit": time_limit}, timeout=time_limit * 4 + 600, log=log))
+            log("    " + _row_text(rows[-1]))
+    return {"rows": rows, "slope": slope(rows)}
+
+
+def _random_loads(build, friction, paths, seed0, log):
+    """``paths`` random load paths on a demo model: f1, f2 random combinations of the model's own
+    loads and of unit tractions on its edges (the same kinds of terms, random sizes)."""
+    import cfcontact
+
+    base = build(friction)
+    f1, f2 = base.loads_numpy()
+    scale = max(np.abs(f1).max(), np.abs(f2).max())
+    out = []
+    for k in range(paths):
+        rng = np.random.default_rng(seed0 + k)
+        g1 = rng.uniform(-1, 1) * f1 + rng.uniform(-1, 1) * f2 + 0.2 * scale * rng.standard_normal(base.n) * (
+            rng.random(base.n) < 0.05)
+        g2 = rng.uniform(-1, 1) * f1 + rng.uniform(-1, 1) * f2 + 0.2 * scale * rng.standard_normal(base.n) * (
+            rng.random(base.n) < 0.05)
+        system = base.with_loads(g1, g2)
+        t0 = time.perf_counter()
+        try:
+            path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+            rec = {"status": path.status, "transitions": len(path.transitions), "folds": len(path.folds),
+                   "start": path.stats.get("start"), "degenerate_points": path.stats.get("degenerate_points", 0),
+                   "homotopy_transitions": path.stats.get("homotopy_transitions", 0)}
+        except cfcontact.CfcontactError as exc:
+            rec = {"status": "start failure", "error": str(exc)[:200], "transitions": 0}
+        rec["time"] = time.perf_counter() - t0
+        out.append(rec)
+    return out
+
+
+def _summary(recs) -> dict:
+    st = {}
+    for r in recs:
+        st[r["status"]] = st.get(r["status"], 0) + 1
+    times = np.array([r["time"] for r in recs])
+    starts = {}
+    for r in recs:
+        starts.setdefault(r.get("start") or "-", []).append(r["time"])
+    ssnm_t = np.median(starts["ssnm"]) if starts.get("ssnm") else float("nan")
+    hom = starts.get("homotopy", [])
+    return {"runs": len(recs), "status": st, "transitions_total": int(sum(r["transitions"] for r in recs)),
+            "transitions_max": int(max(r["transitions"] for r in recs)),
+            "degenerate_points": int(sum(r.get("degenerate_points", 0) for r in recs)),
+            "time_total": float(times.sum()), "time_median": float(np.median(times)),
+            "starts": {k: len(v) for k, v in starts.items()},
+            "homotopy_start_median_time": float(np.median(hom)) if hom else None,
+            "ssnm_start_median_time": float(ssnm_t),
+            "homotopy_over_ssnm": float(np.median(hom) / ssnm_t) if hom and ssnm_t > 0 else None}
+
+
+def part_d(quick=False, paths=None, time_limit=600.0, log=print) -> dict:
+    from cfcontact.demo_models import build_blocks, build_demo
+
+    sizes = QUICK_D_SIZES if quick else D_SIZES
+    paths = (QUICK_D_PATHS if quick else D_PATHS) if paths is None else int(paths)
+    rows = []
+    for F in C_FRICTIONS:
+        for kind in ("uniform", "random"):
+            for m in sizes:
+                log(f"  strip m = {m}, {kind} tractions, F = {F:g} ...")
+                rows.append(run_row({"model": "strip", "kind": kind, "m": m, "friction": F, "seed": 1,
+                                     "time_limit": time_limit}, timeout=time_limit * 4 + 600, log=log))
+                log("    " + _row_text(rows[-1]))
+    for model in ("cylinder", "punch"):
+        for F in C_FRICTIONS:
+            log(f"  {model}, F = {F:g} ...")
+            rows.append(run_row({"model": model, "friction": F, "time_limit": time_limit,
+                                 **({"size": 0.05} if quick else {})}, timeout=time_limit * 4 + 600, log=log))
+            log("    " + _row_text(rows[-1]))
+    for m in ((12, 24) if quick else (24, 48, 96)):
+        log(f"  two blocks closing at once, m = {m} ...")
+        rows.append(run_row({"model": "closing", "m": m, "friction": 0.3, "time_limit": time_limit},
+                            timeout=time_limit * 4 + 600, log=log))
+        log("    " + _row_text(rows[-1]))
+    random = {}
+    for name, build in (("demo", build_demo), ("blocks", build_blocks)):
+        log(f"  {paths} random load paths on the {name} model at F = 30 ...")
+        recs = _random_loads(build, 30.0, paths, 1000, log)
+        random[name] = {"summary": _summary(recs), "runs": recs}
+        log(f"    {random[name]['summary']}")
+    return {"rows": rows, "random_loads": random}
+
+
+def main(argv=None):
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) == 2 and args[0] == "--worker":
+        res = worker(json.loads(args[1]))
+        print("BENCH-RESULT " + json.dumps(res), flush=True)
+        return 0
+    raise SystemExit("usage: cfcontact bench --part C|D (this module's --worker is internal)")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

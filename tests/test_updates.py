@@ -1,0 +1,161 @@
+"""Factorization updates of the exact method's branches (condensed backend, issue #13).
+
+The updated solves (one kept factorization, Sherman-Morrison-Woodbury on the rows of the nodes
+whose state differs) are compared with fresh factorizations: branch by branch on long random
+walks through the state codes (single and multiple node changes, refactorizations forced by a
+small rank limit), and path by path (the same sequence of set changes, the same transition
+points) on systems with degenerate points and folds.  A callback that reads only alpha and the
+path forms no displacement."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import cfcontact
+from cfcontact.condensed import CondensedSolver, _Updater
+from cfcontact.exact import OPEN, SLIP_M, SLIP_P, STICK, canonical_codes
+from cfcontact.lumped import random_system
+from cfcontact.ssnm import SolverOptions
+from cfcontact.system import ContactSystem
+
+
+def fresh(solver, codes, W):
+    """(lam, g) of the reduced system factored afresh (no updates): the reference."""
+    key = b"ref:" + codes.tobytes()
+    lam = solver.multipliers_many(None, W, key=key, codes=codes)
+    return lam, solver.indicators(lam, W, support=solver._lu[key][5])
+
+
+def random_walk(rng, m, F0, steps):
+    """State codes visited by a walk that changes one node (sometimes two or three) per step."""
+    codes = rng.choice([OPEN, STICK, SLIP_P, SLIP_M], size=m).astype(np.int8)
+    out = []
+    for _ in range(steps):
+        k = rng.choice([1, 1, 1, 2, 3])
+        for i in rng.choice(m, size=k, replace=False):
+            codes[i] = rng.choice([OPEN, STICK, SLIP_P, SLIP_M])
+        codes = np.where((codes != OPEN) & F0, SLIP_P, codes).astype(np.int8)
+        out.append(codes.copy())
+    return out
+
+
+@pytest.mark.parametrize("max_rank", [3, 12, None])
+def test_updated_branches_equal_fresh_factorizations(max_rank):
+    rng = np.random.default_rng(7)
+    m = 40
+    friction = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0.2, 3.0, m))
+    system = random_system(m, 3, friction=friction, extra_dofs=10)
+    ref = CondensedSolver(system, SolverOptions(updates=False))
+    upd = CondensedSolver(system, SolverOptions(updates=True))
+    upd._updater = _Updater(upd, max_rank=max_rank)
+    W = ref.load_data_many(list(system.loads_numpy()))
+    F0 = system.friction_vector == 0.0
+    for codes in random_walk(rng, m, F0, 150):
+        lam_ref, g_ref = fresh(ref, codes, W)
+        lam, g, eg = upd.branch_data(W, b"", codes, refine=True)
+        scale = np.abs(lam_ref).max()
+        assert np.abs(lam - lam_ref).max() <= 1e-9 * scale
+        assert np.abs(g - g_ref).max() <= 1e-9 * np.abs(g_ref).max()
+        assert eg.shape == g.shape and np.all(np.isfinite(eg))
+    st = upd.stats.as_dict()
+    assert st["dense_updates"] == 150
+    if max_rank == 3:  # walks of 150 steps leave a rank-3 neighbourhood often: refactorizations
+        assert upd._updater.refactorizations > 5
+    else:
+        assert upd._updater.refactorizations < 40
+
+
+def test_singular_sets_are_reported_by_the_updates_too():
+    """A node pair with identical rows in S makes some sets singular: both ways say so."""
+    rng = np.random.default_rng(1)
+    m = 30
+    A = rng.standard_normal((2 * m, 2 * m))
+    K = A @ A.T + 2 * m * np.eye(2 * m)
+    B = np.eye(2 * m)
+    N, T = B[:m].copy(), B[m:].copy()
+    N[1] = N[0]  # node 1 measures node 0's gap: closing both is singular
+    system = ContactSystem.from_arrays(K, N, T, rng.standard_normal(2 * m), rng.standard_normal(2 * m), 0.5)
+    upd = CondensedSolver(system, SolverOptions(updates=True))
+    W = upd.load_data_many(list(system.loads_numpy()))
+    codes = np.full(m, OPEN, dtype=np.int8)
+    codes[0] = STICK
+    upd.branch_data(W, b"", codes, refine=True)  # regular
+    codes[1] = STICK
+    with pytest.raises(cfcontact.SingularSystemError):
+        upd.branch_data(W, b"", codes, refine=True)
+
+
+def _chain(m, F, seed, copies=1):
+    """A lumped model of m contact nodes with nearest-neighbour elastic coupling, several
+    identical copies (block diagonal: exact ties between the copies' transitions)."""
+    rng = np.random.default_rng(seed)
+    n1 = 2 * m
+    K1 = np.zeros((n1, n1))
+    for i in range(m):
+        K1[2 * i:2 * i + 2, 2 * i:2 * i + 2] += [[1.0, 0.6], [0.6, 1.0]]
+        if i + 1 < m:
+            for c in (0, 1):
+                a, b = 2 * i + c, 2 * (i + 1) + c
+                K1[a, a] += 0.5
+                K1[b, b] += 0.5
+                K1[a, b] -= 0.5
+                K1[b, a] -= 0.5
+    f1 = np.tile([0.3, 1.0], m) + 0.05 * rng.standard_normal(n1)
+    f2 = np.tile([1.0, 0.2], m) + 0.05 * rng.standard_normal(n1)
+    K = sla.block_diag(*([K1] * copies))
+    M = m * copies
+    N = np.zeros((M, 2 * M))
+    T = np.zeros((M, 2 * M))
+    for i in range(M):
+        T[i, 2 * i], N[i, 2 * i + 1] = 1.0, 1.0
+    return ContactSystem.from_arrays(K, N, T, np.tile(f1, copies), np.tile(f2, copies), F)
+
+
+def _same_paths(a, b):
+    assert a.status == b.status
+    assert [(t.node, t.set, t.kind) for t in a.transitions] == [(t.node, t.set, t.kind) for t in b.transitions]
+    assert np.allclose([t.alpha for t in a.transitions], [t.alpha for t in b.transitions], rtol=1e-10, atol=1e-12)
+    assert [canonical_codes(x.sets, a.friction).tolist() for x in a.branches] == \
+        [canonical_codes(x.sets, b.friction).tolist() for x in b.branches]
+
+
+@pytest.mark.parametrize("friction, copies, m", [(0.5, 1, 90), (2.7, 1, 16), (2.7, 2, 16)])
+def test_paths_with_updates_equal_paths_without(friction, copies, m):
+    """Long paths (folds at F = 2.7, above the chain's critical friction; exact ties between the
+    copies' transitions: degenerate points) are the same with and without updates."""
+    system = _chain(m // copies, friction, 5, copies)
+    paths = {}
+    for updates in (True, False):
+        solver = CondensedSolver(system, SolverOptions(updates=updates))
+        paths[updates] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+        if updates:
+            assert solver.stats.dense_updates > 0
+            assert solver._updater.refactorizations < solver.stats.dense_updates
+    _same_paths(paths[True], paths[False])
+    p = paths[True]
+    assert p.status == "completed" and len(p.transitions) > 50
+    if friction > 1:
+        assert p.folds
+    if copies > 1:
+        assert p.stats["degenerate_points"] > 0
+    for i in range(0, len(p.transitions), max(1, len(p.transitions) // 10)):
+        t = p.transitions[i]
+        for b in (t.from_branch, t.to_branch):
+            assert cfcontact.verify(system, p.branch_y(b, t.alpha), t.alpha).ok(1e-9)
+
+
+def test_a_callback_reading_alpha_forms_no_displacement():
+    system = random_system(6, 2, friction=1.0)
+    base = CondensedSolver(system)
+    cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=base)
+    seen = []
+    solver = CondensedSolver(system)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver,
+                                callback=lambda pt: seen.append((pt.alpha, len(pt.path.transitions))))
+    assert len(seen) == len(path.transitions) + 2  # the start, each branch's entry, the end
+    assert solver.stats.linear_solves == base.stats.linear_solves  # no solve with K for the callback
+    # asking for the solution forms it
+    got = []
+    cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system),
+                         callback=lambda pt: got.append(cfcontact.verify(system, pt.solution, pt.alpha).worst()))
+    assert max(got) <= 1e-10
