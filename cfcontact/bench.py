@@ -16,6 +16,11 @@ method runs at least ``--repeat`` times (default 3, ``--quick``: 1) and until it
 the fastest run is reported for both methods, and the median run as well (the noise of a
 shared machine only ever adds time, and adds relatively more to a 15 ms run than to a 2 s one).
 
+Part E (``--part E``) -- the friction map of the main demo's load path on a 200 x 200 (alpha, F) grid,
+its fold curves and critical friction, and the same 200 alpha-paths traced alone (:func:`part_e`).
+(Parts C and D -- long interfaces and hard cases of the exact method -- are in
+:mod:`cfcontact.bench_stress`.)
+
 Part B -- the exact method alone on refined two-block meshes (n ~ 1e4, 1.2e5, 1e6 DOFs;
 nx = 3 ny cells per block, n = 4 nx (ny + 1), m = nx contact nodes) of the two steel blocks
 (:func:`~cfcontact.demo_models.build_blocks`) at the demo's largest friction coefficient.  Every size runs in a fresh subprocess (peak memory =
@@ -235,13 +240,19 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
         k, _, v = kv.partition("=")
         PETSc.Options()[k.lstrip("-")] = v
     PETSc.Log.begin()
+    from mpi4py import MPI
+
     import cfcontact
     from cfcontact.condensed import CondensedSolver
 
-    res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly"}
+    comm = MPI.COMM_WORLD
+    res = {"nx": nx, "ny": ny, "friction": friction, "petsc_options": list(petsc_options), "stage": "assembly",
+           "ranks": comm.size}
 
-    def dump():  # partial results survive a crash / kill
-        print("BENCH-PARTIAL " + json.dumps(res), flush=True)
+    def dump():  # partial results survive a crash / kill (rank 0 writes; peak memory of every rank)
+        res["peak_rss_gib_per_rank"] = comm.allgather(peak_rss_gib())
+        if comm.rank == 0:
+            print("BENCH-PARTIAL " + json.dumps(res), flush=True)
 
     t0 = time.perf_counter()
     system = build_blocks(friction, nx=nx, ny=ny)
@@ -285,6 +296,7 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
                branches=len(path.branches), points=len(path.alphas), K_factorizations=st["factorizations"],
                linear_solves=st["linear_solves"], linear_solves_path=st["linear_solves"] - solves0,
                dense_factorizations=st["dense_factorizations"], dense_solves=st["dense_solves"],
+               dense_updates=st.get("dense_updates", 0),
                profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify",
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message} for e in path.events][:20])
     dump()
@@ -300,13 +312,18 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
         res["verified_points"] = P if idx is None else int(len(idx))
     total = res["assembly_time"] + t_fact + t_cond + res["setup_other_time"] + t_path
     base = res["assembly_time"] + t_fact
-    res.update(total_time=total, ratio=total / base, peak_rss_gib=peak_rss_gib(), stage="done")
+    res.update(total_time=total, ratio=total / base, peak_rss_gib=peak_rss_gib(),
+               peak_rss_gib_per_rank=comm.allgather(peak_rss_gib()),
+               transition_alphas=[t.alpha for t in path.transitions],
+               transition_keys=[[t.node, t.set, t.kind] for t in path.transitions], stage="done")
     return res
 
 
-def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
+def run_size(n_target, friction, timeout, petsc_options, log=print, ranks=1) -> dict:
     nx, ny, n_est = mesh_for(n_target)
     cmd = [sys.executable, "-m", "cfcontact.bench", "--worker-b", f"{nx},{ny},{friction!r}"]
+    if ranks > 1:
+        cmd = ["mpirun", "--allow-run-as-root", "-n", str(int(ranks))] + cmd
     for o in petsc_options:
         cmd += ["--petsc-option", o]
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
@@ -333,19 +350,106 @@ def run_size(n_target, friction, timeout, petsc_options, log=print) -> dict:
     return res
 
 
+def compare_ranks(serial, parallel) -> dict:
+    """Does the parallel run give the serial transitions (same sequence, alpha within 1e-9 relative)?"""
+    ks, kp = serial.get("transition_keys"), parallel.get("transition_keys")
+    if ks is None or kp is None:
+        return {"same_as_serial": None}
+    same = ks == kp
+    d = max((abs(a - b) / max(abs(a), 1e-300) for a, b in zip(serial["transition_alphas"],
+                                                              parallel["transition_alphas"])), default=0.0)
+    return {"same_as_serial": bool(same and d <= 1e-9), "max_alpha_rel_difference": d}
+
+
 def table_b(rows) -> str:
-    head = (f"{'n':>8} {'m':>4} {'assembly':>9} {'factor K':>9} {'condense':>9} {'path':>9} {'total':>9} "
-            f"{'ratio':>6} {'trans.':>6} {'dense f.':>8} {'peak GiB':>8} {'residual':>9} {'status':>10}")
+    head = (f"{'n':>8} {'m':>4} {'ranks':>5} {'assembly':>9} {'factor K':>9} {'condense':>9} {'path':>9} "
+            f"{'total':>9} {'ratio':>6} {'trans.':>6} {'dense f.':>8} {'updates':>7} {'peak GiB':>8} {'residual':>9} "
+            f"{'status':>10}")
     lines = [head, "-" * len(head)]
     f = lambda r, k, w=9, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
     for r in rows:
         status = r.get("status") or f"FAIL:{r.get('failed_in_stage')}"
-        lines.append(f"{r.get('n', r.get('n_target')):>8} {r.get('m', r.get('nx')):>4} {f(r, 'assembly_time')} "
-                     f"{f(r, 'factorization_time')} {f(r, 'condensation_time')} {f(r, 'path_time')} "
-                     f"{f(r, 'total_time')} {f(r, 'ratio', 6, 1)} {r.get('transitions', '-'):>6} "
-                     f"{r.get('dense_factorizations', '-'):>8} {f(r, 'peak_rss_gib', 8, 2)} "
-                     f"{r.get('worst_residual', float('nan')):>9.1e} {status:>10}")
+        per_rank = r.get("peak_rss_gib_per_rank")
+        peak = max(per_rank) if per_rank else r.get("peak_rss_gib")
+        same = {True: " =serial", False: " !=serial"}.get(r.get("same_as_serial"), "")
+        lines.append(f"{r.get('n', r.get('n_target')):>8} {r.get('m', r.get('nx')):>4} {r.get('ranks', 1):>5} "
+                     f"{f(r, 'assembly_time')} {f(r, 'factorization_time')} {f(r, 'condensation_time')} "
+                     f"{f(r, 'path_time')} {f(r, 'total_time')} {f(r, 'ratio', 6, 1)} {r.get('transitions', '-'):>6} "
+                     f"{r.get('dense_factorizations', '-'):>8} {r.get('dense_updates', '-'):>7} "
+                     f"{peak if isinstance(peak, (int, float)) else float('nan'):>8.2f} "
+                     f"{r.get('worst_residual', float('nan')):>9.1e} {status:>10}{same}")
     return "\n".join(lines)
+
+
+# ====================================================================== Part E (issue #16)
+def part_e(quick=False, log=print, frictions=(0.0, 30.0), points=None) -> dict:
+    """The friction map of the main demo's load path (:func:`cfcontact.fmap.multiplicity_map`,
+    ``points`` x ``points`` grid: 200, ``quick``: 40), its fold curves and critical friction
+    (:func:`cfcontact.fmap.fold_curves`), and the reference of the map's cost: the same alpha-paths
+    traced one by one (``trace_exact`` with the same starts and a condensed solver sharing K's
+    factorization), their times summed."""
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.exact import trace_exact
+    from cfcontact.fmap import _Starts, _system_at, fold_curves, multiplicity_map
+    from cfcontact.options import PathOptions
+    from cfcontact.rational import friction_pattern, solver_at
+
+    n = int(points or (40 if quick else 200))
+    system = dm.build_demo(dm.DEMO_FRICTIONS[0])
+    solver = CondensedSolver(system)
+    alphas, Fs = np.linspace(*dm.DEMO_ALPHA, n), np.linspace(*frictions, n)
+    phi, opts = friction_pattern(system), PathOptions()
+    starts = _Starts(system, solver, dm.DEMO_ALPHA[0], float(Fs.max()), opts)
+    last = {}
+
+    def map_run():
+        t0 = time.perf_counter()
+        last["map"] = multiplicity_map(system, alphas, Fs, *dm.DEMO_ALPHA, solver=solver)
+        return time.perf_counter() - t0
+
+    def paths_run():  # the reference: the same n alpha-paths traced alone (their trace_exact calls timed)
+        t, last["transitions"] = 0.0, 0
+        for F in Fs:
+            sysF = _system_at(system, F, phi)
+            view, sets = solver_at(solver, sysF), starts.sets_at(F)
+            t0 = time.perf_counter()
+            path = trace_exact(sysF, *dm.DEMO_ALPHA, solver=view, start_sets=sets)
+            t += time.perf_counter() - t0
+            last["transitions"] += len(path.transitions)
+        return t
+
+    repeat = 1 if quick else 3  # alternately, the fastest of each (the noise of a shared machine only adds)
+    map_times, path_times = [], []
+    for _ in range(repeat):
+        map_times += _timed_runs(map_run, 1, 0.0)
+        path_times += _timed_runs(paths_run, 1, 0.0)
+    fmap, transitions = last["map"], last["transitions"]
+    t_map, t_paths = min(map_times), min(path_times)
+    log(f"  map {n} x {n}: {t_map:.2f} s (fastest of {repeat}; the last: alpha-paths inside "
+        f"{fmap.timings['trace']:.2f} s, counting {fmap.timings['count']:.3f} s, start path "
+        f"{fmap.timings['start_path']:.2f} s); the {n} alpha-paths alone: {t_paths:.2f} s; ratio {t_map / t_paths:.2f}")
+    t0 = time.perf_counter()
+    fc = fold_curves(system, frictions, dm.DEMO_ALPHA, solver=solver)
+    t_curves = time.perf_counter() - t0
+    crit = fc.critical
+    log(f"  fold curves F in [{frictions[0]:g}, {frictions[1]:g}]: {t_curves:.2f} s ({fc.probes} probes, "
+        f"{len(fc.curves)} curves, {len(fc.cusps)} cusps); critical friction of the path: {crit}")
+    return {"points": n, "frictions": list(frictions), "map_time": t_map, "map_timings": fmap.timings,
+            "map_times": map_times, "alpha_paths_times": path_times, "alpha_paths_time": t_paths, "alpha_paths_transitions": transitions, "ratio": t_map / t_paths,
+            "max_solutions": int(fmap.counts.max()), "curves_time": t_curves, "curve_timings": fc.timings,
+            "probes": fc.probes, "curves": len(fc.curves), "cusps": len(fc.cusps),
+            "critical_friction": crit.friction, "critical_alpha": crit.alpha, "critical_node": crit.node,
+            "critical_set": crit.set, "notes": fc.notes}
+
+
+def table_e(r) -> str:
+    return "\n".join([
+        f"map {r['points']} x {r['points']} (alpha x F): {r['map_time']:.2f} s; the {r['points']} alpha-paths alone "
+        f"{r['alpha_paths_time']:.2f} s; ratio {r['ratio']:.2f} (target <= 2)",
+        f"fold curves F in {r['frictions']}: {r['curves_time']:.2f} s ({r['probes']} probes, {r['curves']} curves, "
+        f"{r['cusps']} cusps)",
+        f"critical friction of the path: F = {r['critical_friction']:.12g} (alpha = {r['critical_alpha']:.10g}, "
+        f"node {r['critical_node']} {r['critical_set']})"])
 
 
 # ====================================================================== main
@@ -356,8 +460,9 @@ def add_arguments(ap):
                                     "--quick: 2e3,1e4)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
-    ap.add_argument("--part", default="AB", help="A, B, C, D or several, e.g. AB (default): C = long interfaces, "
-                                                  "D = hard cases of the exact method (cfcontact.bench_stress)")
+    ap.add_argument("--part", default="AB", help="A, B, C, D, E or several, e.g. AB (default): C = long interfaces, "
+                                                  "D = hard cases of the exact method (cfcontact.bench_stress), "
+                                                  "E = the friction map of the main demo (issue #16)")
     ap.add_argument("--time-limit", type=float, default=600.0,
                     help="Parts C and D: tracing time limit of one row [s] (default 600)")
     ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
@@ -366,6 +471,8 @@ def add_arguments(ap):
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
                                                    "(default 1; --quick: 0)")
     ap.add_argument("--timeout", type=float, default=4 * 3600.0, help="per-size time limit of Part B [s]")
+    ap.add_argument("--mpi", type=int, default=1, help="Part B: also run every size under mpirun -n MPI "
+                                                       "(and compare its transitions with the serial run)")
     ap.add_argument("--petsc-option", action="append", default=[],
                     help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
     return ap
@@ -374,8 +481,8 @@ def add_arguments(ap):
 def run(args, argv_text="") -> int:
     """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
     part = str(args.part).upper()
-    if not part or set(part) - {"A", "B", "C", "D"}:
-        raise InputError(f"--part must be letters among A, B, C, D (e.g. AB), got {args.part!r}")
+    if not part or set(part) - {"A", "B", "C", "D", "E"}:
+        raise InputError(f"--part must be letters among A, B, C, D, E (e.g. AB), got {args.part!r}")
     time_limit = getattr(args, "time_limit", 600.0)
     if not (0 < time_limit < math.inf):
         raise InputError(f"--time-limit must be a positive number of seconds, got {time_limit}")
@@ -423,9 +530,17 @@ def run(args, argv_text="") -> int:
         F = max(dm.DEMO_FRICTIONS)
         print(f"Part B: exact method, condensed backend, F = {F:g}", flush=True)
         result["part_b"] = []
+        ranks = int(getattr(args, "mpi", 1) or 1)
+        if ranks < 1:
+            raise InputError(f"--mpi must be >= 1, got {ranks}")
         for s in sizes:
             result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
             save()
+            if ranks > 1:
+                row = run_size(s, F, args.timeout, args.petsc_option, ranks=ranks)
+                row.update(compare_ranks(result["part_b"][-1], row))
+                result["part_b"].append(row)
+                save()
         print(table_b(result["part_b"]), flush=True)
         print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
     if "C" in part or "D" in part:
@@ -443,6 +558,11 @@ def run(args, argv_text="") -> int:
         print(bs.table(result["part_d"]["rows"]), flush=True)
         for name, rl in result["part_d"]["random_loads"].items():
             print(f"random load paths, {name} model, F = 30: {rl['summary']}", flush=True)
+    if "E" in part:
+        print("Part E: friction map, fold curves and critical friction of the main demo's load path", flush=True)
+        result["part_e"] = part_e(quick=args.quick)
+        save()
+        print(table_e(result["part_e"]), flush=True)
     result["machine"]["loadavg_end"] = os.getloadavg()
     save()
     print(f"\nwritten {os.path.abspath(jpath)}")
@@ -457,7 +577,10 @@ def main(argv=None):
     if args.worker_b:
         nx, ny, F = args.worker_b.split(",")
         res = worker_b(int(nx), int(ny), float(F), args.petsc_option)
-        print("BENCH-RESULT " + json.dumps(res), flush=True)
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.rank == 0:
+            print("BENCH-RESULT " + json.dumps(res), flush=True)
         return 0
     try:
         return run(args, " ".join(["cfcontact.bench"] + list(sys.argv[1:] if argv is None else argv)))

@@ -57,6 +57,8 @@ class Key:
 GEOMETRY_KINDS = ("two_blocks", "block_on_foundation", "inclined", "arc", "cylinder", "punch", "msh")
 #: the kinds pressed on a block by a prescribed displacement of their top (cfcontact.models)
 PRESSED_KINDS = ("cylinder", "punch")
+#: [path] parameter: the load path (alpha) or the friction coefficient (cfcontact.friction)
+PARAMETERS = ("alpha", "friction")
 COMPONENT_NAMES = ("u", "lam_n", "lam_t")
 #: The sections that determine the path (a resumed run must have the same).
 PHYSICS_SECTIONS = ("geometry", "material", "contact", "loads", "path")
@@ -161,6 +163,13 @@ def _path_keys() -> dict:
                                             'tangential unknown)'),
         "alpha_start": Key("float", 0.0, "0.0", "f(alpha) = (1 - alpha) f1 + alpha f2, from alpha_start"),
         "alpha_end": Key("float", 1.0, "1.0", "towards alpha_end"),
+        # issue #16: continuation in the friction coefficient (cfcontact.friction)
+        "parameter": Key("str", "alpha", None, '"alpha" (the load path; default) or "friction": continuation in F at '
+                                               'the load f(alpha_start) from friction_start to friction_end '
+                                               '(condensed backend)'),
+        "friction_start": Key("float", None, None, 'parameter = "friction": the first F (default 0)'),
+        "friction_end": Key("float", None, None, 'parameter = "friction": the last F (default: the largest '
+                                                 '[contact] friction)'),
     }
     for f in fields(PathOptions):
         notes = [] if f.default is None else [f"default {_toml(f.default)}"]
@@ -537,6 +546,7 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     case["contact"] = _validate_contact(raw.get("contact", {}), geometry, groups)
     case["loads"] = _validate_loads(raw.get("loads", {}), geometry, material, groups)
     case["path"], case["_request"] = _validate_path(raw.get("path", {}))
+    _validate_friction_parameter(case["path"], case["contact"])
     output = _check_section("output", raw.get("output", {}), SCHEMA["output"])
     if output["animation_format"] not in ("gif", "mp4", "frames"):
         raise CaseError(f"[output] animation_format: expected \"gif\", \"mp4\" or \"frames\", "
@@ -715,6 +725,23 @@ def _validate_path(table):
     except InputError as exc:
         raise CaseError(f"[path] {exc}") from None
     return path, (options, span)
+
+
+def _validate_friction_parameter(path, contact):
+    """[path] parameter: "alpha" or "friction"; for "friction" the range (filled in) and the backend."""
+    if path["parameter"] not in PARAMETERS:
+        raise CaseError(f"[path] parameter: expected one of {', '.join(map(repr, PARAMETERS))}, "
+                        f"got {path['parameter']!r}")
+    if path["parameter"] != "friction":
+        return
+    fr = contact.get("friction", 0.0)
+    path.setdefault("friction_start", 0.0)
+    path.setdefault("friction_end", float(max(fr) if isinstance(fr, list) else fr))
+    F0, F1 = path["friction_start"], path["friction_end"]
+    if min(F0, F1) < 0 or F0 == F1:
+        raise CaseError(f"[path] friction_start, friction_end: need two different values >= 0, got {F0}, {F1}")
+    if path["backend"] == "full":
+        raise CaseError('[path] backend: parameter = "friction" needs the condensed backend ("condensed" or "auto")')
 
 
 def path_request(case) -> tuple:

@@ -37,10 +37,11 @@ from cfcontact.run import (
     Runner,
     StopConditions,
     Stopped,
+    load_saved_path,
+    parameter_label,
     resolve_saved,
     saved_material,
 )
-from cfcontact.solution_path import SolutionPath
 
 EXIT_OK, EXIT_FAILURE, EXIT_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -237,7 +238,7 @@ def _run_case(args, case, run, stops, t_start):
 
 def _load_saved(dirname):
     src = resolve_saved(dirname)
-    path = SolutionPath.load(src)
+    path = load_saved_path(src)
     _default_sigpipe()
     return src, path
 
@@ -262,9 +263,9 @@ def cmd_plot(args):
     from cfcontact.plotting import plot_multiplicity, plot_path, save_figure
 
     if args.multiplicity:
-        fig = plot_multiplicity(path)
+        fig = plot_multiplicity(path, xlabel=parameter_label(path))
     else:
-        fig = plot_path(path, component=component, zoom=zoom)
+        fig = plot_path(path, component=component, zoom=zoom, xlabel=parameter_label(path))
     save_figure(fig, out)
     _say(args, f"wrote {out}")
     return EXIT_OK
@@ -536,6 +537,45 @@ def _setup_bench(sub, common):
     p.set_defaults(func=cmd_bench)
 
 
+def cmd_map(args):
+    """``cfcontact map CASE.toml``: the friction map of the case's load path (issue #16, :mod:`cfcontact.map_run`)."""
+    from cfcontact.map_run import map_case
+
+    case = load_case(args.case)
+    _say(args, f"cfcontact: friction map of {os.path.basename(case['_file'])}")
+    res = map_case(case, args.output, tuple(args.friction_range) if args.friction_range else None,
+                   args.frictions, args.alphas, args.mark, curves=not args.no_curves, force=args.force)
+    _default_sigpipe()
+    crit = res["critical"]
+    _say(args, f"cfcontact: critical friction of the path: {crit if crit is not None else '(no curves computed)'}")
+    _say(args, f"cfcontact: up to {res['max_solutions']} solutions, {res['curves']} fold curve(s), {res['cusps']} "
+               f"cusp(s); wrote {res['output']}/ ({', '.join(res['files'])})")
+    return EXIT_OK
+
+
+def _setup_map(sub, common):
+    from cfcontact.map_run import DEFAULT_POINTS
+
+    p = sub.add_parser("map", parents=[common], help="friction map of a case's load path: solution counts over "
+                                                     "(alpha, F), fold curves, critical F",
+                       description="Trace the exact alpha-path of CASE.toml for every friction coefficient of a "
+                                   "grid and count its solutions (map.png), follow its folds exactly in F (fold "
+                                   "curves, cusps, the smallest F with a fold) and write map.json and map.npz.")
+    p.add_argument("case", metavar="CASE.toml")
+    p.add_argument("-o", "--output", metavar="DIR", help="output folder (default: <case stem>_map/ next to the case)")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.add_argument("--friction-range", nargs=2, type=float, metavar=("F0", "F1"),
+                   help="friction range (default: 0 to the case's friction, at least 1)")
+    p.add_argument("--frictions", type=int, default=DEFAULT_POINTS, metavar="N",
+                   help=f"grid points in F (default {DEFAULT_POINTS})")
+    p.add_argument("--alphas", type=int, default=DEFAULT_POINTS, metavar="N",
+                   help=f"grid points in alpha (default {DEFAULT_POINTS})")
+    p.add_argument("--mark", type=float, action="append", metavar="F",
+                   help="draw a line at this friction (repeatable; default: the case's friction)")
+    p.add_argument("--no-curves", action="store_true", help="the map only (no fold curves, no critical F)")
+    p.set_defaults(func=cmd_map)
+
+
 def _setup_schema(sub, common):
     p = sub.add_parser("schema", parents=[common], help="print the case-file reference (annotated TOML)",
                        description="Print every section and key of a case file with its type, default and "
@@ -546,7 +586,7 @@ def _setup_schema(sub, common):
 #: (name, setup(subparsers, common_parent)) of every subcommand.  A subcommand's
 #: ``cmd_*(args)`` returns an exit code and raises CaseError / InputError for bad input (exit 2).
 SUBCOMMANDS = [("run", _setup_run), ("plot", _setup_plot), ("render", _setup_render), ("info", _setup_info),
-               ("export", _setup_export), ("bench", _setup_bench), ("schema", _setup_schema)]
+               ("export", _setup_export), ("bench", _setup_bench), ("schema", _setup_schema), ("map", _setup_map)]
 
 
 class _Parser(argparse.ArgumentParser):

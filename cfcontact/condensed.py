@@ -66,6 +66,9 @@ SCHUR_MIN_ENTRIES = 1_000_000
 #: grows like sqrt(n): on the two-block meshes of the benchmark MUMPS was as fast at n = 1872 and
 #: faster from n = 2880 (13 ms instead of 17 ms; 21 instead of 32 ms at n = 4104).
 NATIVE_MAX_DOFS = 2000
+#: S from MUMPS' Schur complement is kept only when it agrees with one solve with K to this
+#: (relative) on a probe vector; else it is formed by solves.
+SCHUR_CHECK_RTOL = 1e-11
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
@@ -186,6 +189,8 @@ class CondensedSolver:
         S = self._schur_from_factor() if self._schur_dofs is not None else None
         if S is None and schur:
             raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
+        if S is not None and not schur and not self._schur_accurate(S):
+            S = None  # (a slender or stiff-contrast model: the solves are accurate, the Schur complement not)
         #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs), "forward"
         #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
         self.condensation = "schur" if S is not None else "solves"
@@ -195,6 +200,21 @@ class CondensedSolver:
                 self.condensation = "forward"
         self.S = S if S is not None else self._schur()
         self.timings["condensation"] = time.perf_counter() - t0
+
+    def _schur_accurate(self, S) -> bool:
+        """Does S from the Schur complement agree with B K^-1 B^T applied by one solve with K, on a
+        fixed random vector, within SCHUR_CHECK_RTOL?  (On slender bodies the Schur complement lost
+        three to four digits more than the solves: residuals of (1)-(3) of 4e-7 instead of 4e-10
+        on a 30 x 1 strip of m = 1500 contact nodes.)"""
+        rng = np.random.default_rng(12345)
+        v = rng.standard_normal(2 * self.m)
+        x = linalg.concat_ranks(self.comm, self._ksolve(self.B_local.T @ v))
+        ref = self.B @ x
+        err = np.abs(S @ v - ref).max() / max(np.abs(ref).max(), 1e-300)
+        if err > SCHUR_CHECK_RTOL:
+            log.info("S from the Schur complement is off by %.2g (relative) on a probe; forming it by solves", err)
+            return False
+        return True
 
     # ------------------------------------------------------- Schur complement
     def _request_schur(self, fm, required=False):
@@ -582,11 +602,12 @@ class CondensedSolver:
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
 
-        ``refine``: two steps of iterative refinement (the residual of the reduced system, i.e. the
-        gaps w - S lam of its equation rows, solved with the same LU) and a third result: the
-        change the second made to the indicators (3m x k), an estimate of their rounding error;
-        otherwise one step (none with ``plain``: rates and perturbation responses of the
-        intermediate branches of a degenerate point, which only order its pivots)."""
+        One step of iterative refinement (the residual of the reduced system, i.e. the gaps w - S
+        lam of its equation rows, solved with the same LU), none with ``plain`` (rates and
+        perturbation responses of the intermediate branches of a degenerate point, which only order
+        its pivots).  ``refine``: a third result, the change the refinement made to the indicators
+        (3m x k), an estimate of their rounding error (with updates: the change of the last of their
+        refinement steps)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
@@ -620,7 +641,9 @@ class CondensedSolver:
             return full, Ssup.T @ full[support]
 
         L, SL = expand(_getrs(lu, piv, Wr, trans=1)[0])
-        steps = 2 if refine else (0 if plain else 1)  # refine twice: the second correction measures the error
+        # one step of refinement (its correction measures the rounding error of a fresh factorization's
+        # solution); none for the intermediate branches of a degenerate point (``plain``)
+        steps = 0 if plain else 1
         for _ in range(steps):
             D, SD = expand(_getrs(lu, piv, Wr - SL[rows], trans=1)[0])
             L = L + D

@@ -259,8 +259,12 @@ class _CondensedData:
         self.WE = None  # perturbation data B K^-1 E (2m x J)
 
     def line(self, codes, key, alpha):
-        w = (1.0 - alpha) * self.w1 + alpha * self.w2
-        L, G, Eg = self.solver.branch_data(np.column_stack([w, self.dw]), key, codes, refine=True)
+        W = np.empty((self.dw.size, 2))
+        w = W[:, 0]
+        np.multiply(self.w1, 1.0 - alpha, out=w)
+        w += alpha * self.w2
+        W[:, 1] = self.dw
+        L, G, Eg = self.solver.branch_data(W, key, codes, refine=True)
         scale_v = np.abs(L[:, 0]).max(initial=0.0) + self.rho * np.abs(w).max(initial=0.0)
         scale_s = np.abs(L[:, 1]).max(initial=0.0) + self.rho * np.abs(self.dw).max(initial=0.0)
         solver = self.solver

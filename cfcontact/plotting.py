@@ -11,6 +11,8 @@ module works headless and inside other applications.  Write a figure with
   optionally with a zoom window (second panel or inset).
 * :func:`plot_multiplicity` -- number of distinct solutions of the path over alpha (steps).
 * :func:`default_component` -- the contact node whose lam_n varies most along the path.
+* :func:`plot_friction_map` -- the (α, F) plane: solution counts as regions, fold curves, cusps,
+  the critical friction (:mod:`cfcontact.fmap`).
 """
 
 from __future__ import annotations
@@ -24,8 +26,8 @@ from matplotlib.figure import Figure
 
 from cfcontact.errors import InputError
 
-__all__ = ["plot_path", "plot_multiplicity", "save_figure", "default_component", "component_label",
-           "path_curve", "SUPPORTED_FORMATS"]
+__all__ = ["plot_path", "plot_multiplicity", "plot_friction_map", "save_figure", "default_component",
+           "component_label", "path_curve", "SUPPORTED_FORMATS"]
 
 SUPPORTED_FORMATS = (".png", ".pdf")
 PATH_COLOR = "#1f4e9c"
@@ -256,6 +258,61 @@ def plot_multiplicity(path, ax=None, title: Optional[str] = None, xlabel: str = 
     ax.grid(True, alpha=0.3)
     if title is not None:
         ax.set_title(title)
+    return fig
+
+
+# ------------------------------------------------------------------ friction map (issue #16)
+def plot_friction_map(fmap, curves=None, critical=None, marks=(), ax=None, title: Optional[str] = None,
+                      figsize=(8.0, 6.0), dpi: int = 100, cusps: bool = True) -> Figure:
+    """The (α, F) plane of a load path: the number of solutions on the traced path at every grid
+    point of a :class:`cfcontact.fmap.FrictionMap` as coloured regions (0: the path does not
+    reach that α; -1: not traced), the fold curves of a :class:`cfcontact.fmap.FoldCurves` over
+    it (black lines through exactly evaluated points; gid "fold_curves"), its cusps (gid
+    "cusps"), the critical friction (a red dashed line, gid "critical") and ``marks`` (friction
+    values, a grey horizontal line each, gid "marks")."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    counts = np.asarray(fmap.counts)
+    if counts.size == 0:
+        raise InputError("the map is empty; nothing to plot")
+    if ax is None:
+        fig, (ax,) = _new_figure(figsize, dpi)
+    else:
+        fig = ax.figure
+    values = sorted(set(int(v) for v in np.unique(counts)))
+    palette = {-1: "#bdbdbd", 0: "#ffffff", 1: "#deebf7", 2: "#c7e9c0", 3: "#9ecae1", 4: "#a1d99b",
+               5: "#4292c6", 6: "#41ab5d", 7: "#2171b5", 8: "#238b45"}
+    colors = [palette.get(v, "#08306b" if v % 2 else "#00441b") for v in values]
+    bounds = [v - 0.5 for v in values] + [values[-1] + 0.5]
+    mesh = ax.pcolormesh(fmap.alphas, fmap.frictions, counts, shading="nearest",
+                         cmap=ListedColormap(colors), norm=BoundaryNorm(bounds, len(colors)), gid="map")
+    cb = fig.colorbar(mesh, ax=ax, ticks=values, fraction=0.05, pad=0.02)
+    cb.set_label("solutions on the traced path")
+    if curves is not None:
+        first = True
+        for c in curves.curves:
+            pts = c.sample()
+            ax.plot(pts[:, 0], pts[:, 1], "-", color="k", lw=1.0, gid="fold_curves",
+                    label="fold curves" if first else None)
+            first = False
+        if cusps and curves.cusps:
+            cp = np.asarray(curves.cusps, dtype=float)
+            ax.plot(cp[:, 0], cp[:, 1], "o", ls="none", ms=3.5, color="#ff7f0e", gid="cusps", label="cusps")
+    if critical is not None and np.isfinite(critical.friction):
+        ax.axhline(critical.friction, color=FOLD_COLOR, ls="--", lw=1.2, gid="critical",
+                   label=f"critical F = {critical.friction:.6g}")
+    for k, F in enumerate(marks):
+        ax.axhline(float(F), color="0.35", ls=":", lw=1.2, gid="marks", label="marked F" if k == 0 else None)
+        ax.annotate(f"F = {float(F):g}", (1.0, float(F)), xycoords=("axes fraction", "data"), fontsize="x-small",
+                    ha="right", va="bottom", color="0.25")
+    ax.set_xlim(float(np.min(fmap.alphas)), float(np.max(fmap.alphas)))
+    ax.set_ylim(float(np.min(fmap.frictions)), float(np.max(fmap.frictions)))
+    ax.set_xlabel("α (load path)")
+    ax.set_ylabel("friction coefficient F")
+    if title is not None:
+        ax.set_title(title)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
     return fig
 
 

@@ -137,6 +137,7 @@ def path_report(path, declared=None) -> dict:
     contact = None if getattr(path, "geometry", None) is None else contact_report(path, declared=declared)
     return jsonable({
         "method": path.method, "status": path.status, "n": path.n, "m": path.m,
+        "parameter": getattr(path, "parameter", "alpha"),
         "alpha_start": path.alpha_start, "alpha_end": path.alpha_end,
         "points": len(path.alphas), "branches": len(path.branches),
         "transitions": [t.to_dict() for t in path.transitions],
@@ -151,9 +152,10 @@ def path_report(path, declared=None) -> dict:
 
 def format_report(rep, source) -> str:
     """The text of ``cfcontact info``: a :func:`path_report` of the saved path ``source``."""
+    par = "F (friction)" if rep.get("parameter") == "friction" else "alpha"
     lines = [f"saved path: {source}",
              f"method {rep['method']}, status {rep['status']}, n = {rep['n']} DOFs, m = {rep['m']} contact nodes, "
-             f"alpha {rep['alpha_start']:g} -> {rep['alpha_end']:g}",
+             f"{par} {rep['alpha_start']:g} -> {rep['alpha_end']:g}",
              f"points {rep['points']}, branches {rep['branches']}, transitions {len(rep['transitions'])} "
              f"({sum(t['kind'] == 'transversal' for t in rep['transitions'])} transversal, {len(rep['folds'])} folds)"]
     if rep.get("system_checksum"):

@@ -51,7 +51,8 @@ from cfcontact.stepper import CHECKPOINT
 log = logging.getLogger(__name__)
 
 __all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
-           "has_checkpoint", "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "RUN_FORMAT",
+           "has_checkpoint", "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "load_saved_path",
+           "parameter_label", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
 RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
@@ -283,7 +284,7 @@ def load_checkpoint(partial):
         if os.path.isfile(os.path.join(ck, "state.json")) and os.path.isdir(os.path.join(ck, "path")):
             state = _read_state(os.path.join(ck, "state.json"))
             try:
-                saved = SolutionPath.load(os.path.join(ck, "path"))
+                saved = load_saved_path(os.path.join(ck, "path"))
             except InputError as exc:
                 raise CaseError(f"the checkpoint is damaged: {exc}; start over with --force") from None
             if state["system_checksum"] != saved.system_checksum:
@@ -363,12 +364,12 @@ def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, sys
         from cfcontact.plotting import plot_multiplicity, plot_path, save_figure
 
         fig = plot_path(path, component=component, zoom=out.get("zoom"),
-                        title=case.get("title"))
+                        title=case.get("title"), xlabel=parameter_label(path))
         for fmt in out["plot_formats"]:
             save_figure(fig, os.path.join(outdir, f"path.{fmt}"))
             files.append(f"path.{fmt}")
         if path.multiplicity_intervals():
-            fig = plot_multiplicity(path)
+            fig = plot_multiplicity(path, xlabel=parameter_label(path))
             for fmt in out["plot_formats"]:
                 save_figure(fig, os.path.join(outdir, f"multiplicity.{fmt}"))
                 files.append(f"multiplicity.{fmt}")
@@ -590,12 +591,14 @@ class CaseRun:
         Raises :class:`Stopped` (after writing the checkpoint) when the runner stops the run."""
         options, span = path_request(self.case)
         p = self.case["path"]
+        friction = p.get("parameter", "alpha") == "friction"
         if self.resume is not None:
             self.check_system(system)
         system.check_positive_definite()
-        solver = select_solver(system, p["method"], p["backend"])
+        solver = select_solver(system, *(("exact", "condensed") if friction else (p["method"], p["backend"])))
         runner.begin(solver, self.resume["path"] if self.resume else None)
-        stepper = path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume)
+        stepper = (_friction_stepper(system, p, options, solver, self.resume) if friction else
+                   path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume))
 
         def save(path, state):
             runner.display.clear()
@@ -670,6 +673,26 @@ class CaseRun:
 
 
 # ============================================================ saved paths
+def _friction_stepper(system, p, options, solver, resume):
+    """[path] parameter = "friction" (issue #16): the stepper of :mod:`cfcontact.friction`."""
+    from cfcontact.friction import friction_stepper
+
+    return friction_stepper(system, p["alpha_start"], p["friction_start"], p["friction_end"], p["method"], options,
+                            solver, resume)
+
+
+def load_saved_path(dirname) -> SolutionPath:
+    """A saved path whichever its parameter (a friction path: :class:`cfcontact.friction.FrictionPath`)."""
+    from cfcontact.friction import load_path
+
+    return load_path(dirname)
+
+
+def parameter_label(path) -> str:
+    """The x label of a path's plots: "α", or "F" for a path over the friction coefficient."""
+    return "F" if getattr(path, "parameter", "alpha") == "friction" else "α"
+
+
 def resolve_saved(dirname) -> str:
     """The path/ folder of a saved path, a run output folder, or a stopped run's <out>.partial folder."""
     dirname = os.fspath(dirname)

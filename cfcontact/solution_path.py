@@ -191,6 +191,10 @@ class _Points(list):
 class SolutionPath:
     """The traced solution path: points, branches, transitions, and exact branch evaluation."""
 
+    #: The ``format`` of a saved path of this class (:meth:`load` reads only its own; a path over
+    #: another parameter, :class:`cfcontact.friction.FrictionPath`, has its own).
+    FORMAT = "cfcontact-path"
+
     def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
                  geometry: Optional[ContactGeometry] = None, gap=None):
         self.n, self.m = int(n), int(m)
@@ -601,7 +605,7 @@ class SolutionPath:
         os.makedirs(parent, exist_ok=True)
         tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
         try:
-            meta = {"format": "cfcontact-path", "version": FORMAT_VERSION, "n": self.n, "m": self.m,
+            meta = {"format": self.FORMAT, "version": FORMAT_VERSION, "n": self.n, "m": self.m,
                     "rho": self.rho, "method": self.method, "alpha_start": self.alpha_start,
                     "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
                     "stats": self.stats, "branches": [b.to_dict() for b in self.branches],
@@ -615,10 +619,7 @@ class SolutionPath:
                       "friction": np.asarray(self.friction, dtype=float), "gap": self.gap,
                       "N_data": self.N.data, "N_indices": self.N.indices, "N_indptr": self.N.indptr,
                       "T_data": self.T.data, "T_indices": self.T.indices, "T_indptr": self.T.indptr}
-            if self.branches:
-                arrays["alpha_ref"] = np.array([self._Y[b.index][0] for b in self.branches])
-                arrays["Y_ref"] = np.stack([self._Y[b.index][1] for b in self.branches])
-                arrays["dY"] = np.stack([self._Y[b.index][2] for b in self.branches])
+            arrays.update(self._branch_arrays())
             if self.geometry is not None:
                 arrays.update({"geometry_" + k: v for k, v in self.geometry.to_dict().items()})
             np.savez_compressed(os.path.join(tmp, "fields.npz"), **arrays)
@@ -634,6 +635,23 @@ class SolutionPath:
             raise
         return path
 
+    def _branch_arrays(self) -> dict:
+        """The branches' arrays of a save (:meth:`save` has formed every branch): the reference form."""
+        if not self.branches:
+            return {}
+        return {"alpha_ref": np.array([self._Y[b.index][0] for b in self.branches]),
+                "Y_ref": np.stack([self._Y[b.index][1] for b in self.branches]),
+                "dY": np.stack([self._Y[b.index][2] for b in self.branches])}
+
+    def _set_branch_arrays(self, arrays):
+        """The branches of a loaded path from the arrays :meth:`_branch_arrays` saved."""
+        for b in self.branches:
+            if "Y_ref" in arrays:
+                self._Y[b.index] = (float(arrays["alpha_ref"][b.index]), arrays["Y_ref"][b.index],
+                                    arrays["dY"][b.index])
+            else:  # version 1: the points at alpha = 0 and 1
+                self._Y[b.index] = (0.0, arrays["Y1"][b.index], arrays["Y2"][b.index] - arrays["Y1"][b.index])
+
     @classmethod
     def load(cls, path) -> "SolutionPath":
         """Read a path written by :meth:`save`.  Every file is checked first
@@ -641,7 +659,7 @@ class SolutionPath:
         truncated or corrupted file, a missing key, a wrongly shaped or non-finite array is an
         InputError naming the file and what is wrong."""
         path = os.fspath(path)
-        meta = read_saved_meta(path)
+        meta = read_saved_meta(path, cls.FORMAT)
         arrays = read_saved_arrays(path)
         validate_saved(meta, arrays, path)
         n, m = meta["n"], meta["m"]
@@ -660,11 +678,7 @@ class SolutionPath:
         p._ys = _Points(p, [ys[i] for i in range(ys.shape[0])])
         p._point_branch = [int(b) for b in arrays["point_branch"]]
         p.branches = [Branch.from_dict(d) for d in meta["branches"]]
-        for b in p.branches:
-            if "Y_ref" in arrays:
-                p._Y[b.index] = (float(arrays["alpha_ref"][b.index]), arrays["Y_ref"][b.index], arrays["dY"][b.index])
-            else:  # version 1: the points at alpha = 0 and 1
-                p._Y[b.index] = (0.0, arrays["Y1"][b.index], arrays["Y2"][b.index] - arrays["Y1"][b.index])
+        p._set_branch_arrays(arrays)
         p.transitions = [Transition.from_dict(d) for d in meta["transitions"]]
         p.events = [PathEvent(**d) for d in meta["events"]]
         p.status = meta["status"]
@@ -678,8 +692,9 @@ class _Bad(Exception):
     """What is wrong with one saved item (turned into an InputError naming the file)."""
 
 
-def read_saved_meta(path) -> dict:
-    """path.json of a saved path, parsed and checked against the format (InputError naming the file)."""
+def read_saved_meta(path, fmt: str = "cfcontact-path") -> dict:
+    """path.json of a saved path, parsed and checked against the format ``fmt`` (InputError naming
+    the file)."""
     jpath = os.path.join(path, "path.json")
     if not os.path.isfile(jpath):
         raise InputError(f"{path!r} is not a saved cfcontact path (no path.json inside)")
@@ -690,7 +705,7 @@ def read_saved_meta(path) -> dict:
         raise InputError(f"{jpath}: unreadable or truncated JSON ({exc})") from None
     if not isinstance(meta, dict):
         raise InputError(f"{jpath}: not a saved cfcontact path (a JSON {type(meta).__name__}, expected an object)")
-    if meta.get("format") != "cfcontact-path" or meta.get("version") not in (1, FORMAT_VERSION):
+    if meta.get("format") != fmt or meta.get("version") not in (1, FORMAT_VERSION):
         raise InputError(f"{path!r}: unsupported format {meta.get('format')!r} version {meta.get('version')!r}")
     try:
         _check_meta(meta)
@@ -798,7 +813,12 @@ def expected_arrays(meta, arrays) -> dict:
            "friction": (None, "f"),
            "N_data": ((None,), "f"), "N_indices": ((None,), "i"), "N_indptr": ((m + 1,), "i"),
            "T_data": ((None,), "f"), "T_indices": ((None,), "i"), "T_indptr": ((m + 1,), "i")}
-    if B and meta.get("version") == 1:  # the branches at alpha = 0 and 1
+    if meta.get("format") == "cfcontact-friction-path":  # branches in exact rational form (cfcontact.friction)
+        if B:
+            exp.update({"fb_p": ((B,), "i"), "fb_lam0": ((B, 2 * m), "f"), "fb_gam0": ((B, None), "f"),
+                        "fb_h": ((None,), "f"), "fb_H": ((None,), "f"), "fb_L": ((2 * m, None), "f"),
+                        "fb_GamL": ((2 * m, None), "f"), "fb_u0": ((B, n), "f"), "fb_U": ((n, None), "f")})
+    elif B and meta.get("version") == 1:  # the branches at alpha = 0 and 1
         exp["Y1"] = ((B, width), "f")
         exp["Y2"] = ((B, width), "f")
     elif B:  # the branches in reference form

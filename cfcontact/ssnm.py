@@ -455,7 +455,10 @@ def is_fixed_point(system: ContactSystem, y, Z: InactiveSets) -> bool:
 class Verification:
     """How well y satisfies (1)-(3); every entry is relative (dimensionless).
 
-    equilibrium: ||K u + N^T lam_n + T^T lam_t - f|| / max(||f||, ||K u||)
+    equilibrium: ||K u + N^T lam_n + T^T lam_t - f|| / (||K|| ||u|| + ||N^T lam_n + T^T lam_t|| + ||f||)
+        (max-norms): the normwise backward error of (1), what a backward-stable solve attains
+        (relative to ||f|| alone, an ill-conditioned K -- a slender body -- shows its condition
+        number times the rounding, whatever the solver)
     normal, tangential: max-norm of the 2nd / 3rd block of G(y) in (4) over the force scale
     cone: max (|lam_t| - F lam_n)_+ ; sign: max (-lam_n)_+ and (N u - g)_+ (penetration, times rho)
     slip_direction: worst violation of "stick => T u = 0, slip+- => +-T u >= 0" (times rho)
@@ -488,8 +491,10 @@ def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) ->
     F = system.friction_vector
     fvec = _load_vector(system, alpha, f)
     Ku = solver.K_times(u)
-    r = Ku + N.T @ ln + T.T @ lt - fvec
-    eq = np.linalg.norm(r) / max(np.linalg.norm(fvec), np.linalg.norm(Ku), 1e-300)
+    Blam = N.T @ ln + T.T @ lt
+    r = Ku + Blam - fvec
+    eq = np.abs(r).max(initial=0.0) / max(system.K_norm() * np.abs(u).max(initial=0.0) + np.abs(Blam).max(initial=0.0)
+                                          + np.abs(fvec).max(initial=0.0), 1e-300)
     Nu, Tu = rho * (N @ u - system.gap), rho * (T @ u)  # Nu: rho times the gap left, N u - g
     scale = max(np.abs(ln).max(initial=0), np.abs(lt).max(initial=0), np.abs(Nu).max(initial=0),
                 np.abs(Tu).max(initial=0), 1e-300)

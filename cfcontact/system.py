@@ -319,6 +319,12 @@ class ContactSystem:
             self._cache["loads"] = (linalg.gather_vec(self.f1), linalg.gather_vec(self.f2))
         return self._cache["loads"]
 
+    def K_norm(self) -> float:
+        """||K|| (max absolute row sum), cached; collective under MPI."""
+        if "K_norm" not in self._cache:
+            self._cache["K_norm"] = float(self.K.norm(PETSc.NormType.INFINITY))
+        return self._cache["K_norm"]
+
     def contact_maps(self):
         """(N, T) as whole SciPy CSR matrices on every rank, cached."""
         if "NT" not in self._cache:

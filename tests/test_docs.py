@@ -44,7 +44,7 @@ def _page(site, name):
 @pytest.mark.slow
 def test_site_builds_without_warnings_and_has_every_page(site):
     for name in ("index", "getting-started", "tutorial", "cli", "case-files", "geometry", "troubleshooting",
-                 "theory", "algorithms", "friction-map", "limits", "gallery", "validation", "bench", "api"):
+                 "theory", "algorithms", "friction", "limits", "gallery", "validation", "bench", "api"):
         assert (site / f"{name}.html").is_file(), name
 
 
@@ -61,7 +61,7 @@ def test_case_file_page_shows_the_generated_reference(site):
 def test_gallery_pictures_are_generated_by_the_build(site):
     images = set(os.listdir(site / "_images"))
     expected = {"path_F0.1.png", "path_F0.6.png", "path_F30.png", "solutions_F0.6.png", "solutions_F30.png",
-                "hertz.png", "mindlin.png", "path.png", "multiplicity.png", "solutions.png", "stress.png"}
+                "hertz.png", "mindlin.png", "map.png", "path.png", "multiplicity.png", "solutions.png", "stress.png"}
     expected |= {f"{v}.png" for v in ("two_blocks", "foundation", "arc", "inclined", "user_msh", "cylinder",
                                       "punch", "nonmatching", "obstacle", "half_cylinder")}
     assert expected <= images, sorted(expected - images)

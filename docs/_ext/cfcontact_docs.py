@@ -61,6 +61,9 @@ JOBS = {
     "critical": (["demos/critical_friction.py", "--quick"],
                  "critical friction of the two-block models on coarse meshes (--quick)",
                  ("demos/critical_friction.py",)),
+    "friction_map": (["demos/friction_map.py", "--quick", "--output", "{out}"],
+                     "the (alpha, F) map of the main demo's load path on 40 x 40 grids (--quick)",
+                     ("demos/friction_map.py",)),
     "tutorial": (["docs/_ext/run_blocks.py", "docs/tutorial.md", "{out}"],
                  "the Python blocks of the tutorial, in order", ("docs/tutorial.md", "docs/_ext/run_blocks.py")),
 }
