@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Run the test suite: installs what is missing (scripts/install.sh), then pytest.
-#   ./test.sh                 all tests (what CI runs)
+#   ./test.sh                 all tests (what CI runs), the documentation build included
+#                             (tests/test_docs.py: sphinx -W, the demos of its gallery; ~2 min)
 #   ./test.sh --quick         the quick loop: -m "not slow and not mpi" (under a minute)
 #   ./test.sh -m "not slow"   pytest options and paths pass through (also after --quick)
 set -euo pipefail

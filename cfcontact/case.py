@@ -2,8 +2,8 @@
 
 The schema (:data:`SCHEMA`, one :class:`Key` per key with its type, default and doc) is the one
 source of the case-file format: :func:`validate_case` checks a parsed file against it, and
-:func:`reference_text` renders it as the annotated reference of ``cfcontact schema`` and
-docs/cli.md (a test keeps the two equal).  The ``[path]`` keys beyond ``method``, ``backend``,
+:func:`reference_text` renders it as the annotated reference of ``cfcontact schema`` and of
+the documentation's case-file page (docs/case-files.md, generated from it at build time).  The ``[path]`` keys beyond ``method``, ``backend``,
 ``alpha_start`` and ``alpha_end`` are generated from the fields of
 :class:`cfcontact.options.PathOptions`, and the checks of E and nu are those of
 :mod:`cfcontact.material`, the assembly's.

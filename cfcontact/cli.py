@@ -1,7 +1,7 @@
 """Command line of cfcontact: ``cfcontact SUBCOMMAND ...`` (also ``python -m cfcontact``).
 
 ``run CASE.toml`` validates a case file (:mod:`cfcontact.case`; the format: ``cfcontact schema``
-and docs/cli.md), builds the model, traces the path and writes the output folder
+and docs/case-files.md), builds the model, traces the path and writes the output folder
 (:mod:`cfcontact.run`: stop conditions, checkpoints, resume, atomic output).  ``plot``,
 ``render``, ``info`` (:mod:`cfcontact.report`) and ``export`` work on a saved path: a ``path/``
 folder, a run's output folder, or a stopped run's ``<out>.partial/`` folder.  ``bench`` runs

@@ -1,10 +1,10 @@
-"""Pictures of the geometry variants for the README (``docs/img/<variant>.png``).
+"""Pictures of the geometry variants (the documentation's geometry page, ``<output>/<variant>.png``).
 
 For each variant the example case file in ``demos/cases/`` is read and its model built, one
 point of its load path is solved by the semi-smooth Newton method, and the deformed bodies
 are rendered off-screen with the contact nodes coloured by state (open / stick / slip)::
 
-    .venv/bin/python demos/pictures.py                        # all variants -> docs/img/
+    .venv/bin/python demos/pictures.py                        # all variants -> output/pictures/
     .venv/bin/python demos/pictures.py --variant arc -o /tmp/img --window-size 600 360
 
 Variants and case files:
@@ -25,7 +25,8 @@ half_cylinder      half_cylinder.toml          the right half of the cylinder, a
 =================  ==========================  ==============================================
 
 The picture's magnification is the case's ``[output] magnification`` (a rigid obstacle is drawn
-as it is: obstacle.toml sets 1), else automatic.
+as it is: obstacle.toml sets 1), else automatic.  The documentation build runs this script into
+its build directory (docs/_ext/cfcontact_docs.py), so the pictures are never stale.
 """
 
 from __future__ import annotations
@@ -114,7 +115,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variant", action="append", choices=sorted(VARIANTS),
                     help="variant to draw (repeatable; default: all)")
-    ap.add_argument("-o", "--output", default=os.path.join(ROOT, "docs", "img"), help="folder of the PNGs")
+    ap.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "pictures"), help="folder of the PNGs")
     ap.add_argument("--window-size", type=int, nargs=2, default=(600, 360), metavar=("W", "H"))
     args = ap.parse_args(argv)
     for variant in args.variant or list(VARIANTS):

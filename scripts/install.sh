@@ -4,7 +4,8 @@
 #   scripts/install.sh          (as root, or as a user with sudo)
 #
 # * Debian packages (FEniCSx/dolfinx, PETSc, gmsh, SciPy, Matplotlib, threadpoolctl, pytest,
-#   hypothesis, OpenBLAS, Open MPI, Xvfb; on trixie also Debian's PyVista/VTK), installed only
+#   hypothesis, OpenBLAS, Open MPI, Xvfb; Sphinx with the MyST parser, the Read-the-Docs theme
+#   and MathJax for the documentation; on trixie also Debian's PyVista/VTK), installed only
 #   when missing.
 # * .venv in the repository root: /usr/bin/python3 -m venv --system-site-packages, so Debian's
 #   dolfinx/petsc4py/numpy are used as they are.
@@ -37,7 +38,8 @@ die() { say "error: $*"; exit 1; }
 CODENAME=$( . /etc/os-release 2>/dev/null && echo "${VERSION_CODENAME:-}" ) || CODENAME=
 PKGS=(python3-dolfinx-real python3-gmsh python3-venv python3-pip python3-setuptools python3-wheel
       python3-scipy python3-matplotlib python3-threadpoolctl python3-pytest python3-hypothesis
-      libopenblas0-pthread openmpi-bin xvfb xauth)
+      libopenblas0-pthread openmpi-bin xvfb xauth
+      python3-sphinx python3-myst-parser python3-sphinx-rtd-theme libjs-mathjax)
 case "$CODENAME" in
     bookworm)
         # The PyPI VTK wheel dlopens libEGL/libGL at run time: Mesa's EGL (surfaceless,
@@ -210,6 +212,7 @@ say "installing cfcontact (editable)"
 "$VENV/bin/python" - "$REPO" <<'EOF'
 import importlib.util, os, sys
 import numpy, scipy, matplotlib, gmsh, dolfinx, pyvista, vtk, threadpoolctl
+import sphinx, myst_parser, sphinx_rtd_theme   # the documentation build (tests/test_docs.py)
 from mpi4py import MPI
 from petsc4py import PETSc
 v = PETSc.Vec().createSeq(4); v.set(1.0); assert v.sum() == 4.0   # petsc4py works with this numpy

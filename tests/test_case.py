@@ -1,5 +1,5 @@
 """Case files (cfcontact.case): the schema is the one source of the format, the [path] options
-reach the library, the reference in docs/cli.md is the schema's."""
+reach the library, the documentation's reference is generated from the schema."""
 
 import os
 import subprocess
@@ -26,10 +26,19 @@ def test_reference_is_a_valid_case_and_documents_every_key():
         assert name in case.SCHEMA["path"]
 
 
-def test_docs_hold_the_generated_reference():
-    with open(os.path.join(ROOT, "docs", "cli.md")) as fh:
-        docs = fh.read()
-    assert "```toml\n" + case.reference_text() + "```\n" in docs, "docs/cli.md: rerun the reference (cfcontact schema)"
+def test_docs_generate_the_reference_and_hold_no_copy():
+    """docs/case-files.md renders the reference with the case-reference directive, which prints
+    case.reference_text() (docs/_ext/cfcontact_docs.py; tests/test_docs.py checks the built
+    page); no page keeps a copy of it that could fall behind."""
+    with open(os.path.join(ROOT, "docs", "case-files.md"), encoding="utf-8") as fh:
+        assert "```{case-reference}\n```" in fh.read()
+    with open(os.path.join(ROOT, "docs", "_ext", "cfcontact_docs.py"), encoding="utf-8") as fh:
+        assert "reference_text()" in fh.read()
+    first = case.reference_text().splitlines()[0]
+    for fn in os.listdir(os.path.join(ROOT, "docs")):
+        if fn.endswith((".md", ".rst")):
+            with open(os.path.join(ROOT, "docs", fn), encoding="utf-8") as fh:
+                assert first not in fh.read(), f"docs/{fn} holds a copy of the case-file reference"
 
 
 @pytest.mark.slow

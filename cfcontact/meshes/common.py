@@ -9,7 +9,7 @@ import os
 
 from cfcontact.errors import GeometryError, InputError  # noqa: F401  (GeometryError: for the scripts)
 
-#: physical group numbers of every model (DESIGN.md; README "Tag convention"); ``sym1`` /
+#: physical group numbers of every model (DESIGN.md; docs/geometry.md "Tag convention"); ``sym1`` /
 #: ``sym2`` are the symmetry edges (x = 0) of half models, ``top2`` the top of a block outside
 #: its contact boundary
 TAGS = {
