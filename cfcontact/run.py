@@ -213,6 +213,11 @@ class OutputLock:
                 if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                     raise CaseError(f"cannot lock the output folder {self.out!r}: {exc.strerror}") from None
                 info = self.holder()
+                for _ in range(100):  # the holder writes its details right after locking: wait for them
+                    if "pid" in info:
+                        break
+                    time.sleep(0.01)
+                    info = self.holder()
                 who = (f"process {info.get('pid', '?')} ({info.get('command', 'cfcontact run')}, started "
                        f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(info['time']))} on "
                        f"{info.get('host', '?')})" if isinstance(info.get("time"), (int, float)) else
