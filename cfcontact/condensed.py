@@ -58,6 +58,11 @@ STORE_LIMIT = 50_000_000
 #: of 6e-10); above it the Schur complement is much cheaper (two blocks, n = 9744, m = 84: S
 #: and K's factorization in 29 ms instead of 104 ms).
 SCHUR_MIN_ENTRIES = 1_000_000
+#: ... and only when the contact unknowns are at most this share of the DOFs (compact bodies):
+#: along a long interface the Schur complement is neither faster than the solves (a 30 x 1 strip,
+#: m = 1500: 20.7 s against 14.4 s) nor as accurate (residuals of (1)-(3) of 3e-9 instead of 2e-12
+#: on a 4 x 1 strip, m = 200).
+SCHUR_MAX_CONTACT_SHARE = 0.02
 #: On one rank, K with at most this many DOFs is factored by PETSc's own sparse Cholesky (K is
 #: SPD: no pivoting needed) in reverse Cuthill-McKee order, and S, w1, w2 come from forward
 #: substitutions alone (:meth:`CondensedSolver._condense_forward`).  At this size MUMPS' fixed
@@ -107,7 +112,8 @@ class CondensedSolver:
     schur : form S from the Schur complement of K on the contact DOFs, which MUMPS computes
         during the factorization (about the cost of the factorization instead of 2m solves).
         Default: when possible (one rank, MUMPS) and worth it (K^-1 B^T would have at least
-        SCHUR_MIN_ENTRIES entries); False: never (S by solves or forward substitutions); True:
+        SCHUR_MIN_ENTRIES entries and the contact unknowns are at most SCHUR_MAX_CONTACT_SHARE of the
+        DOFs); False: never (S by solves or forward substitutions); True:
         required (MUMPS' LU of K then).  S from the
         Schur complement is slightly less accurate (relative violations of (1)-(3) up to
         ~1e-9 instead of ~1e-11 on the demo mesh).
@@ -166,7 +172,8 @@ class CondensedSolver:
             if not PETSc.Options().hasName(self.options.prefix + "K_mat_mumps_icntl_14"):
                 # MUMPS' default workspace estimate (ICNTL(14) = 20%) is too small for dense couplings
                 fm.setMumpsIcntl(14, 100)
-            if schur or (schur is None and self.size == 1 and self.n * 2 * m >= SCHUR_MIN_ENTRIES):
+            if schur or (schur is None and self.size == 1 and self.n * 2 * m >= SCHUR_MIN_ENTRIES
+                         and 2 * m <= SCHUR_MAX_CONTACT_SHARE * self.n):
                 if self.size > 1:
                     raise InputError("schur=True: PETSc's MUMPS interface has no parallel Schur complement")
                 self._request_schur(fm, required=bool(schur))
