@@ -18,7 +18,9 @@ def _import_gmsh():
     """Import gmsh with Ctrl-C held back: gmsh 4.8 sets SIGINT to SIG_DFL when it is imported, and
     a Ctrl-C between that and the restoring of Python's handler would kill the process without a
     word.  Imported once here, later imports do nothing; a Ctrl-C that arrived meanwhile is
-    delivered to Python's handler when it is unblocked."""
+    delivered to Python's handler when it is unblocked.  It must come first: a signal mask holds
+    only while this is the process's one thread (numpy's BLAS starts threads that would take the
+    signal, with gmsh's SIG_DFL)."""
     try:
         held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     except (AttributeError, OSError, ValueError):  # no signal masks here: import as it is

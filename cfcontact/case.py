@@ -17,6 +17,7 @@ Nothing here imports dolfinx or PETSc at import time.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import json
@@ -522,6 +523,28 @@ def python_sigint():
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+@contextlib.contextmanager
+def sigint_deferred():
+    """Context: a Ctrl-C while heavy libraries are imported is raised after them, at a clean point.
+
+    A KeyboardInterrupt raised inside an import can be misreported: dolfinx 0.9 checks its
+    dependencies on import and turns any exception while importing basix into an ImportError
+    ("basix is broken").  Meanwhile Python's handler only records the Ctrl-C; when the block ends
+    the previous handler is back (Python's own where an import set SIG_DFL, as gmsh 4.8 does) and
+    the recorded Ctrl-C is raised as KeyboardInterrupt.  Main thread only (elsewhere: no effect)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    old = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if old in (signal.SIG_DFL, None) else old)
+    if caught:
+        raise KeyboardInterrupt
+
+
 # ------------------------------------------------------------------ validation
 def validate_case(raw: dict, base_dir: str = ".") -> dict:
     """Check a parsed case file completely; returns the normalised case (CaseError on the first problem).
@@ -968,6 +991,8 @@ def build_system(case):
 
 
 def _build(geo, common):
+    with sigint_deferred():  # dolfinx, ufl, basix and gmsh load here: a Ctrl-C waits for them
+        from cfcontact import assembly, models  # noqa: F401
     if geo["kind"] == "msh":
         from cfcontact.assembly import assemble_contact_system
 

@@ -839,6 +839,11 @@ UPDATE_MIN_SIZE = 160
 #: Refactor the kept system when a refinement step changes the multipliers by more than this
 #: (relative): the updates have lost accuracy.
 UPDATE_REFINE_RTOL = 1e-8
+#: Refactor the kept system at the branch when the refined indicators' estimated rounding error
+#: exceeds this share of their size: near a singular branch (between two folds a hair apart) the
+#: updated solve can be 1e6 times less accurate than a fresh LU, and its wide rounding bounds
+#: would merge separate transitions into one degenerate point (a different path).
+UPDATE_ERR_RTOL = 1e-10
 
 
 class _Updater:
@@ -1016,6 +1021,14 @@ class _Updater:
         B = np.zeros_like(W)
         B[:m] = np.where(closed[:, None], self.rho * W[:m], 0.0)
         B[m:] = np.where(t_s[:, None], self.rho * W[m:], 0.0)
+        rho = s.system.rho
+        F = s.F[:, None]
+
+        def ind(lam, w, Slam):
+            g = lam + rho * (w - Slam)
+            b = g[m:]
+            return np.concatenate((g[:m], b - F * lam[:m], b + F * lam[:m]))
+
         for attempt in range(2):
             self._ensure(D)
             solve = self._solver(types, D)
@@ -1049,26 +1062,23 @@ class _Updater:
                 if step and size > 0.25 * sizes[-2]:
                     ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
                     break
+            Eg = Eg_scale * np.abs(ind(applied[0], np.zeros_like(W), applied[1]))
+            reason = "refine"
+            if ok and D.size:  # accurate enough for the path's tie tests (a fresh LU's accuracy)?
+                size = np.abs(L).max(axis=0, initial=0.0) + rho * np.abs(W).max(axis=0, initial=0.0)
+                ok = bool((Eg.max(axis=0, initial=0.0) <= UPDATE_ERR_RTOL * size).all())
+                reason = "error"
             if ok or attempt == 1 or not D.size:
                 break
-            self.reasons["refine"] = self.reasons.get("refine", 0) + 1
+            self.reasons[reason] = self.reasons.get(reason, 0) + 1
             self.rebase(codes)  # the updates lost accuracy: start over from this branch
             D = D[:0]
         s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
         s.stats.dense_updates += 1
         self.updates += 1
-        rho = s.system.rho
-        F = s.F[:, None]
-
-        def ind(lam, w, Slam):
-            g = lam + rho * (w - Slam)
-            b = g[m:]
-            return np.concatenate((g[:m], b - F * lam[:m], b + F * lam[:m]))
-
         G = ind(L, W, SL)
         if not refine:
             return L, G
-        Eg = Eg_scale * np.abs(ind(applied[0], np.zeros_like(W), applied[1]))
         return L, G, Eg
 
 

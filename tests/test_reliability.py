@@ -417,3 +417,22 @@ def test_two_concurrent_runs_into_one_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert json.load(open(os.path.join(out, "summary.json")))["case_file"] == case_b
     assert sorted(os.listdir(tmp_path)) == ["a.toml", "b.toml", "shared"]
+
+
+def test_ctrl_c_during_library_imports_is_raised_after_them():
+    """case.sigint_deferred: a Ctrl-C inside the block (as while dolfinx and basix are imported,
+    whose dependency check would report a KeyboardInterrupt as a broken basix) does not interrupt
+    the block; it is raised as KeyboardInterrupt when the block ends, with the handler restored."""
+    from cfcontact.case import sigint_deferred
+
+    before = signal.getsignal(signal.SIGINT)
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with sigint_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # Python runs the handler between bytecodes: nothing raised here
+            done.append(True)
+    assert done == [True] and signal.getsignal(signal.SIGINT) is before
+    with sigint_deferred():  # without a Ctrl-C: nothing raised
+        done.append(False)
+    assert signal.getsignal(signal.SIGINT) is before

@@ -159,3 +159,26 @@ def test_a_callback_reading_alpha_forms_no_displacement():
     cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system),
                          callback=lambda pt: got.append(cfcontact.verify(system, pt.solution, pt.alpha).worst()))
     assert max(got) <= 1e-10
+
+
+@pytest.mark.slow
+def test_updates_near_singular_branches_keep_the_path():
+    """Strip with m = 150 at F = 30 (Part C's model): its path runs through branches 3e-7 long
+    between folds, where an updated solve was 1e6 times less accurate than a fresh LU; its wide
+    rounding bounds merged four separate roots into one degenerate point, and the path went into
+    a branch that violated four nodes' conditions (ending 'cycling' at 17 016 transitions).  The
+    updater now refactors such branches: the same transitions as without updates."""
+    from cfcontact.bench_stress import strip
+
+    system = strip(150, 30.0, seed=0)
+    paths = {}
+    for updates in (True, False):
+        solver = CondensedSolver(system, options=SolverOptions(updates=updates))
+        paths[updates] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver,
+                                              max_transitions=17100)
+    a, b = paths[True], paths[False]
+    assert a.status == b.status == "max_transitions", (a.status, a.events[-1:])
+    assert [(t.node, t.set, t.kind) for t in a.transitions] == [(t.node, t.set, t.kind) for t in b.transitions]
+    ta, tb = np.array([t.alpha for t in a.transitions]), np.array([t.alpha for t in b.transitions])
+    assert np.abs(ta - tb).max() <= 1e-10 * np.abs(tb).max()
+    assert (a.transitions[17000].node, a.transitions[17000].set) == (82, "nu")
