@@ -42,7 +42,7 @@ _LAZY = {
     "trace_exact": ("cfcontact.exact", "trace_exact"),
     "follow_alternative": ("cfcontact.exact", "follow_alternative"),
     "CondensedSolver": ("cfcontact.condensed", "CondensedSolver"),
-    # issue #16: friction as the parameter
+    # friction as the parameter
     "trace_friction_path": ("cfcontact.friction", "trace_friction_path"),
     "FrictionPath": ("cfcontact.friction", "FrictionPath"),
     "critical_friction_path": ("cfcontact.fmap", "critical_friction_path"),

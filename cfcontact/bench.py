@@ -381,7 +381,7 @@ def table_b(rows) -> str:
     return "\n".join(lines)
 
 
-# ====================================================================== Part E (issue #16)
+# ====================================================================== Part E
 def part_e(quick=False, log=print, frictions=(0.0, 30.0), points=None) -> dict:
     """The friction map of the main demo's load path (:func:`cfcontact.fmap.multiplicity_map`,
     ``points`` x ``points`` grid: 200, ``quick``: 40), its fold curves and critical friction
@@ -458,11 +458,13 @@ def add_arguments(ap):
     ap.add_argument("--quick", action="store_true", help="coarse demo mesh in Part A, small sizes in Part B")
     ap.add_argument("--sizes", help="Part B target DOF counts, comma separated (default 1e4,1.2e5,1e6; "
                                     "--quick: 2e3,1e4)")
+    ap.add_argument("--contact-nodes", help="Part C: contact node counts m of the strips, comma separated "
+                                            "(default 1000,2000,4000; --quick: 100,200 at F = 0.3, 100,120 at F = 30)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
     ap.add_argument("--part", default="AB", help="A, B, C, D, E or several, e.g. AB (default): C = long interfaces, "
                                                   "D = hard cases of the exact method (cfcontact.bench_stress), "
-                                                  "E = the friction map of the main demo (issue #16)")
+                                                  "E = the friction map of the main demo")
     ap.add_argument("--time-limit", type=float, default=600.0,
                     help="Parts C and D: tracing time limit of one row [s] (default 600)")
     ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
@@ -495,6 +497,14 @@ def run(args, argv_text="") -> int:
         raise InputError(f"--sizes must be comma-separated numbers, got {args.sizes!r}") from None
     if any(not (s >= 100) for s in sizes):
         raise InputError(f"--sizes must be DOF counts >= 100, got {args.sizes!r}")
+    strip_m = None
+    if getattr(args, "contact_nodes", None):
+        try:
+            strip_m = [int(v) for v in args.contact_nodes.split(",")]
+        except ValueError:
+            raise InputError(f"--contact-nodes must be comma-separated integers, got {args.contact_nodes!r}") from None
+        if any(v < 4 for v in strip_m):
+            raise InputError(f"--contact-nodes must be node counts >= 4, got {args.contact_nodes!r}")
     repeat = getattr(args, "repeat", None)
     repeat = repeat if repeat is not None else (1 if args.quick else 3)
     if repeat < 1:
@@ -547,7 +557,7 @@ def run(args, argv_text="") -> int:
         from cfcontact import bench_stress as bs
     if "C" in part:
         print("Part C: long interfaces (exact method, condensed backend with factorization updates)", flush=True)
-        result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit)
+        result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit, sizes=strip_m)
         save()
         print(bs.table(result["part_c"]["rows"]), flush=True)
         print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)

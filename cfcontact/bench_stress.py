@@ -265,10 +265,12 @@ def slope(rows) -> dict:
     return out
 
 
-def part_c(quick=False, time_limit=600.0, log=print) -> dict:
+def part_c(quick=False, time_limit=600.0, log=print, sizes=None) -> dict:
+    """Part C: the strips at F = 0.3 and 30 (``sizes``: their contact node counts m, default
+    C_SIZES, or QUICK_C_SIZES when quick)."""
     rows = []
     for F in C_FRICTIONS:
-        for m in (QUICK_C_SIZES[F] if quick else C_SIZES):
+        for m in (sizes or (QUICK_C_SIZES[F] if quick else C_SIZES)):
             log(f"  strip m = {m}, F = {F:g} ...")
             rows.append(run_row({"model": "strip", "kind": "uniform", "m": m, "friction": F, "seed": 0,
                                  "time_limit": time_limit}, timeout=time_limit * 4 + 600, log=log))

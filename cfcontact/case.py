@@ -164,7 +164,7 @@ def _path_keys() -> dict:
                                             'tangential unknown)'),
         "alpha_start": Key("float", 0.0, "0.0", "f(alpha) = (1 - alpha) f1 + alpha f2, from alpha_start"),
         "alpha_end": Key("float", 1.0, "1.0", "towards alpha_end"),
-        # issue #16: continuation in the friction coefficient (cfcontact.friction)
+        # continuation in the friction coefficient (cfcontact.friction)
         "parameter": Key("str", "alpha", None, '"alpha" (the load path; default) or "friction": continuation in F at '
                                                'the load f(alpha_start) from friction_start to friction_end '
                                                '(condensed backend)'),

@@ -538,7 +538,7 @@ def _setup_bench(sub, common):
 
 
 def cmd_map(args):
-    """``cfcontact map CASE.toml``: the friction map of the case's load path (issue #16, :mod:`cfcontact.map_run`)."""
+    """``cfcontact map CASE.toml``: the friction map of the case's load path (:mod:`cfcontact.map_run`)."""
     from cfcontact.map_run import map_case
 
     case = load_case(args.case)

@@ -8,7 +8,7 @@ With an initial gap g (:attr:`ContactSystem.gap`) :meth:`CondensedSolver.load_da
 w = B K^-1 f - (g; 0) instead, so that w - S lam = (N u - g; T u): everything below then holds
 with the gap.
 
-DirNeu(Z, f) (method.md (9)) is then the dense system M(Z) lam = r(Z, w) with, per node i,
+DirNeu(Z, f) (docs/theory.md (9)) is then the dense system M(Z) lam = r(Z, w) with, per node i,
 
     normal row     : A_nu: (S lam)_i = w_i            I_nu: lam_n,i = 0
     tangential row : A_t : (S lam)_{m+i} = w_{m+i}    I_t : lam_t,i - F (1_{I_t+} - 1_{I_t-}) lam_n,i = 0

@@ -1,7 +1,7 @@
 """Where folds become possible: the smallest friction coefficient at which a small contact
 configuration's DirNeu matrix loses its sign (a scan, not a proof).
 
-Along a piecewise-affine solution path (method.md, "Path following") the path turns back in
+Along a piecewise-affine solution path (docs/theory.md, "Path following") the path turns back in
 alpha (a fold) exactly where it passes from one linear piece into a neighbour whose DirNeu
 matrix has the opposite determinant sign.  In the condensed form (:mod:`cfcontact.condensed`,
 S = B K^-1 B^T) a piece is fixed by its contact set C (nodes in contact), the stick nodes
@@ -13,7 +13,7 @@ St in C and the slip signs s of the others; its matrix in the unknowns lam_n(C),
 For F = 0 it is a principal submatrix of the SPD S, so det M > 0; it is affine in F, and its
 determinant first changes sign at the smallest positive real generalized eigenvalue of
 (M(0), -dM/dF).  Below that F no path can fold through this piece.  One node against a rigid
-foundation gives F = k_tt / |k_tn| (method.md's uniqueness bound).
+foundation gives F = k_tt / |k_tn| (docs/theory.md's uniqueness bound).
 
 :func:`critical_friction` scans windows of up to ``window`` neighbouring contact nodes (the
 interface order of the system), every slip-sign pattern, and every stick subset of windows

@@ -34,7 +34,7 @@ DEMO_MODEL = dict(height=1.0, height2=0.3, length=3.0, cell="triangle",
 # and [2.9, 3.0], on bottom2 at x in [2.5, 2.6] and [2.9, 3.0]) and body forces [N/m^3].  The
 # numbers come from a search: a linear program put nodes 27 and 28 into the load cone of three
 # solutions at F = 0.6, then random and local searches over the 16 load terms chose f1, f2 so
-# that the seed's predictor-corrector and the exact method give the same transitions at all three
+# that the predictor-corrector of [JL-PF] and the exact method give the same transitions at all three
 # F; rounded to three digits.  The outcome per F is printed by the demo and checked by
 # tests/test_demos.py.  The three-solution interval at F = 0.6 is narrow (2.7e-3 in alpha,
 # around alpha = 0.792): changing a load term by 0.1 % can remove it.

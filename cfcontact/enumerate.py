@@ -1,4 +1,4 @@
-"""Every solution at one alpha by trying every nodal state combination (the seed's Remark 3.2).
+"""Every solution at one alpha by trying every nodal state combination ([JL-PF]'s Remark 3.2).
 
 Per contact node the states are open / stick / slip+ / slip- (an open node is tangentially
 free, lam_t = 0, so its tangential sign is irrelevant; a node with F = 0 has only open / free;

@@ -18,7 +18,7 @@ affine in the p slipping nodes' tangential forces mu, which solve (I + F H) mu =
   next, forward or back in F (a *fold in F*), degenerate points where several constraints
   vanish -- is decided by the exact method's lexicographic rule (:mod:`cfcontact.exact`) on
   the branches' values and F-derivatives there.
-* ``method="seed"``: the seed's predictor-corrector with F as the parameter (DirNeu on the
+* ``method="seed"``: the predictor-corrector of [JL-PF] with F as the parameter (DirNeu on the
   branch at F + s h, accepted when it is consistent with its states; failures at h_min are
   transitions, branching by the smallest indicator).  The reference the exact method is
   compared with; its transition points are known to within h_min.

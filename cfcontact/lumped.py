@@ -1,6 +1,6 @@
 """Lumped (non-FEM) contact models driven through the same solver code.
 
-``one_node`` is method.md's exact one-node check: one contact node against a rigid
+``one_node`` is docs/theory.md's exact one-node check: one contact node against a rigid
 foundation, u = (u_t, u_n), N = [0, 1], T = [1, 0].  ``random_system`` draws small
 random SPD models (tests, property-based checks).
 """
@@ -14,7 +14,7 @@ from cfcontact.system import ContactSystem
 
 def one_node(friction=2.5, K=((1.0, 0.5), (0.5, 1.0)), f1=None, f2=None, rho=None, comm=None,
              gap=None) -> ContactSystem:
-    """One node against a rigid foundation (method.md).  DOF order (u_t, u_n).
+    """One node against a rigid foundation (docs/theory.md).  DOF order (u_t, u_n).
 
     Default loads: unit forces at 15 and 35 degrees from the tangential axis, so the
     load direction sweeps through the wedge atan(0.4)..atan(0.5) of three solutions.

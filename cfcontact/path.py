@@ -4,7 +4,7 @@
 DirNeu backend (:func:`select_solver`) and the method's stepper (:func:`path_stepper`), and runs
 it:
 
-* ``method="seed"``: the seed's predictor-corrector (:class:`cfcontact.seed.SeedStepper`);
+* ``method="seed"``: the predictor-corrector of [JL-PF] (:class:`cfcontact.seed.SeedStepper`);
 * ``method="exact"``: the exact piecewise-affine continuation of :mod:`cfcontact.exact`
   (:class:`cfcontact.exact.ExactStepper`).
 
@@ -83,12 +83,12 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
 
     Parameters
     ----------
-    method : "seed" (the seed's Section 4) or "exact" (exact piecewise-affine continuation)
+    method : "seed" ([JL-PF]'s Section 4) or "exact" (exact piecewise-affine continuation)
     solver : a DirNeu backend object (overrides ``backend``)
     backend : "full" (PETSc :class:`~cfcontact.ssnm.DirNeuSolver`: one factorization of J(Z) per
         branch), "condensed" (:class:`~cfcontact.condensed.CondensedSolver`: K factored once,
         dense systems in the contact unknowns) or "auto" (default: condensed for the exact method
-        when m <= CONDENSED_MAX_M, full otherwise; the seed method uses full, as the seed does)
+        when m <= CONDENSED_MAX_M, full otherwise; the seed method uses full, as in [JL-PF])
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``,
         ``tie_rtol=1e-9``)

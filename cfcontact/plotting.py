@@ -6,7 +6,7 @@ module works headless and inside other applications.  Write a figure with
 :func:`save_figure` (PNG or PDF, by extension).
 
 * :func:`plot_path` -- load parameter alpha (x axis) against one component of
-  y = (u, lam_n, lam_t), like the seed's Figure 6 (alpha against lam_n at one contact node),
+  y = (u, lam_n, lam_t), like [JL-PF]'s Figure 6 (alpha against lam_n at one contact node),
   with fold transitions marked (red triangles) and transversal transitions (small dots),
   optionally with a zoom window (second panel or inset).
 * :func:`plot_multiplicity` -- number of distinct solutions of the path over alpha (steps).
@@ -166,7 +166,7 @@ def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True,
               title: Optional[str] = None, xlabel: str = "α", ylabel: Optional[str] = None,
               figsize=(8.0, 4.5), dpi: int = 100, zoom_style: str = "panel", legend: bool = True,
               linewidth: float = 1.2, markersize: float = 7.0) -> Figure:
-    """α (x axis) against one component of the solution along the path (the seed's Figure 6).
+    """α (x axis) against one component of the solution along the path ([JL-PF]'s Figure 6).
 
     Parameters
     ----------
@@ -261,7 +261,7 @@ def plot_multiplicity(path, ax=None, title: Optional[str] = None, xlabel: str = 
     return fig
 
 
-# ------------------------------------------------------------------ friction map (issue #16)
+# ------------------------------------------------------------------ friction map
 def plot_friction_map(fmap, curves=None, critical=None, marks=(), ax=None, title: Optional[str] = None,
                       figsize=(8.0, 6.0), dpi: int = 100, cusps: bool = True) -> Figure:
     """The (α, F) plane of a load path: the number of solutions on the traced path at every grid

@@ -679,7 +679,7 @@ class CaseRun:
 
 # ============================================================ saved paths
 def _friction_stepper(system, p, options, solver, resume):
-    """[path] parameter = "friction" (issue #16): the stepper of :mod:`cfcontact.friction`."""
+    """[path] parameter = "friction": the stepper of :mod:`cfcontact.friction`."""
     from cfcontact.friction import friction_stepper
 
     return friction_stepper(system, p["alpha_start"], p["friction_start"], p["friction_end"], p["method"], options,

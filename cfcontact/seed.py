@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 
 
 class SeedStepper(Stepper):
-    """One run of the seed's method; see :class:`cfcontact.stepper.Stepper`.
+    """One run of the seed method ([JL-PF]'s predictor-corrector); see :class:`cfcontact.stepper.Stepper`.
 
     ``resume``: ``{"path": SolutionPath, "state": resume state}`` of a stopped or checkpointed
     run (the path possibly saved and loaded); new points are appended to that path.

@@ -1,13 +1,13 @@
 """Semi-smooth Newton layer: inactive sets, the generalized Jacobian J(Z), DirNeu, SSNM.
 
-Notation follows the seed (Section 3) and ``method.md``.  With y = (u, lam_n, lam_t) and the
-system's initial gap g (:attr:`ContactSystem.gap`, zero by default)::
+Notation follows the path-following paper [JL-PF] (Section 3) and the theory page
+(docs/theory.md).  With y = (u, lam_n, lam_t) and the system's initial gap g (:attr:`ContactSystem.gap`, zero by default)::
 
     I_nu  = { i : lam_n,i + rho ((N u)_i - g_i) < 0 }            (open nodes)
     I_t^+ = { i : lam_t,i + rho (T u)_i - F lam_n,i > 0 }         (slip +)
     I_t^- = { i : lam_t,i + rho (T u)_i + F lam_n,i < 0 }         (slip -)
 
-and ``dirneu(Z, f)`` solves J(Z) y = (f, r_g, 0) with J of method.md (5), r_g = -rho g on the
+and ``dirneu(Z, f)`` solves J(Z) y = (f, r_g, 0) with J of docs/theory.md (5), r_g = -rho g on the
 closed nodes (A_nu: (N u)_i = g_i) and 0 on the open ones: DirNeu is affine in f (linear when
 g = 0), and along f(alpha) with Z fixed y(alpha) is still affine because g is constant.  J is
 assembled as one PETSc AIJ matrix: the displacement rows are distributed as the
@@ -165,7 +165,7 @@ def indicators(system: ContactSystem, y: np.ndarray):
 
 
 def inactive_sets(system: ContactSystem, y) -> InactiveSets:
-    """Inactive sets Z(y) of the seed's Section 3."""
+    """Inactive sets Z(y) of [JL-PF]'s Section 3."""
     if isinstance(y, Solution):
         y = y.y
     a, bp, bm = indicators(system, y)
@@ -274,7 +274,7 @@ class DirNeuSolver:
 
     # -- assembly of J(Z)
     def jacobian_lower(self, Z: InactiveSets) -> sp.csr_matrix:
-        """The 2m multiplier rows of J(Z) (method.md (5)) as a SciPy matrix (2m x (n+2m))."""
+        """The 2m multiplier rows of J(Z) (docs/theory.md (5)) as a SciPy matrix (2m x (n+2m))."""
         m, rho = self.m, self.system.rho
         F = self.system.friction_vector
         A_nu = (~Z.nu).astype(float)
@@ -413,7 +413,7 @@ def _as_y(system, y0):
 
 def ssnm(system: ContactSystem, alpha: float = 0.0, y0=None, tol: float = 1e-9, max_iter: int = 100,
          f=None, solver: Optional[DirNeuSolver] = None) -> Solution:
-    """Semi-smooth Newton method (ALGORITHM SSNM of the seed).
+    """Semi-smooth Newton method (ALGORITHM SSNM of [JL-PF]).
 
     y^k = DirNeu(Z(y^{k-1}), f), stopped when ||y^k - y^{k-1}|| <= tol ||y^k||.
     The start y0 (a Solution or a flat vector of length n + 2m) defaults to 0, whose

@@ -1,6 +1,6 @@
 """The contact-system object: the only thing the solver layers see.
 
-A :class:`ContactSystem` holds the discrete problem of method.md (1)-(4)::
+A :class:`ContactSystem` holds the discrete problem of docs/theory.md (1)-(4)::
 
     K u + N^T lam_n + T^T lam_t = f(alpha) = (1 - alpha) f1 + alpha f2
     N u - g <= 0, lam_n >= 0, lam_n^T (N u - g) = 0, Coulomb's law with coefficient F
@@ -138,7 +138,7 @@ def default_rho(K: sp.spmatrix, N: sp.spmatrix, T: sp.spmatrix) -> float:
 
     With rho of the size of a nodal stiffness, rho * (N u)_i is a force of the size
     of lam_n,i, so the tests ``lam + rho * gap`` that define the inactive sets weigh
-    both alike (the seed's remark: forces ~1e10 while displacements are tiny).
+    both alike ([JL-PF]'s remark: forces ~1e10 while displacements are tiny).
     """
     B = sp.vstack([sp.csr_matrix(N), sp.csr_matrix(T)]).tocsc()
     dofs = np.flatnonzero(np.diff(B.indptr) > 0)
