@@ -458,8 +458,9 @@ def add_arguments(ap):
     ap.add_argument("--quick", action="store_true", help="coarse demo mesh in Part A, small sizes in Part B")
     ap.add_argument("--sizes", help="Part B target DOF counts, comma separated (default 1e4,1.2e5,1e6; "
                                     "--quick: 2e3,1e4)")
-    ap.add_argument("--contact-nodes", help="Part C: contact node counts m of the strips, comma separated "
-                                            "(default 1000,2000,4000; --quick: 100,200 at F = 0.3, 100,120 at F = 30)")
+    ap.add_argument("--contact-nodes", help="Parts C and D: contact node counts m of the strips, comma separated "
+                                            "(default C: 1000,2000,4000, D: 500,1000,2000; --quick: C 100,200 at "
+                                            "F = 0.3 and 100,120 at F = 30, D 100)")
     ap.add_argument("--skip-large", action="store_true", help=f"drop Part B sizes above {LARGE:g} DOFs")
     ap.add_argument("--output", default="output/bench", help="folder for bench.json (default output/bench)")
     ap.add_argument("--part", default="AB", help="A, B, C, D, E or several, e.g. AB (default): C = long interfaces, "
@@ -563,7 +564,7 @@ def run(args, argv_text="") -> int:
         print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)
     if "D" in part:
         print("Part D: hard cases of the exact method", flush=True)
-        result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit)
+        result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m)
         save()
         print(bs.table(result["part_d"]["rows"]), flush=True)
         for name, rl in result["part_d"]["random_loads"].items():

@@ -327,10 +327,13 @@ def _summary(recs) -> dict:
             "homotopy_over_ssnm": float(np.median(hom) / ssnm_t) if hom and ssnm_t > 0 else None}
 
 
-def part_d(quick=False, paths=None, time_limit=600.0, log=print) -> dict:
+def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None) -> dict:
+    """Part D: strips with uniform and random tractions (``sizes``: their contact node counts,
+    default D_SIZES, or QUICK_D_SIZES when quick), the cylinder and the punch, blocks closing
+    all at once, and ``paths`` random load paths on each demo model at F = 30."""
     from cfcontact.demo_models import build_blocks, build_demo
 
-    sizes = QUICK_D_SIZES if quick else D_SIZES
+    sizes = sizes or (QUICK_D_SIZES if quick else D_SIZES)
     paths = (QUICK_D_PATHS if quick else D_PATHS) if paths is None else int(paths)
     rows = []
     for F in C_FRICTIONS:

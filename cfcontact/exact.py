@@ -97,6 +97,8 @@ START_SSNM_ITERATIONS = 25
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
+#: Transition cap of the homotopy start (independent of the path's max_transitions).
+HOMOTOPY_MAX_TRANSITIONS = 1000000
 
 OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
 _A, _BP, _BM = 0, 1, 2
@@ -1065,7 +1067,9 @@ def _homotopy_start(ctx: _Context, alpha) -> tuple:
     scale = max(np.abs(w).max(initial=0.0), 1e-300)
     c = 1.1 * max(0.0, -float(w[:m].min(initial=0.0)), Fmax * float(np.abs(w[m:]).max(initial=0.0))) + scale
     w_open = np.concatenate([np.full(m, -c), w[m:]])
-    hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None)
+    # the path's own transition cap does not bound its start (the homotopy ends: each branch once)
+    hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None,
+                                       max_transitions=max(int(ctx.opts.max_transitions), HOMOTOPY_MAX_TRANSITIONS))
     hctx = _Context(ctx.system, ctx.solver, hopts, 0.0, 1.0, ctx.rtol, W=np.column_stack([w_open, w]))
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})

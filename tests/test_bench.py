@@ -81,7 +81,8 @@ def test_bench_wrapper_and_bad_options(tmp_path):
                           cwd=ROOT, env=env, timeout=120)
     assert proc.returncode == 0 and "--skip-large" in proc.stdout
     for bad in (["--part", "X"], ["--sizes", "1e4,x"], ["--repeat", "0"], ["--min-time", "-1"],
-                ["--part", "C", "--time-limit", "-3"], ["--part", "D", "--paths", "0"]):
+                ["--part", "C", "--time-limit", "-3"], ["--part", "D", "--paths", "0"],
+                ["--part", "C", "--contact-nodes", "100,x"], ["--part", "C", "--contact-nodes", "2"]):
         proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", *bad, "--output", str(tmp_path)],
                               capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
         assert proc.returncode == 2 and "error" in proc.stderr, (bad, proc.stderr)

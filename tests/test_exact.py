@@ -552,3 +552,18 @@ def test_trace_tree_finds_every_solution_of_two_identical_nodes():
     assert_transitions_verify(system, path, 1e-12)
     tree = cfcontact.exact.trace_tree(system, 0.0, 1.0)
     assert len(tree.branches) == len(path.branches)
+
+
+@pytest.mark.slow
+def test_homotopy_start_is_not_bounded_by_the_path_cap():
+    """On a long strip (m = 500, F = 0.3) SSNM from 0 does not converge within the start's 25
+    iterations; the exact method reaches the start by its homotopy from the all-open state (532
+    transitions), whatever the path's own max_transitions.  The start point verifies."""
+    from cfcontact.bench_stress import strip
+
+    system = strip(500, 0.3, seed=0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=5)
+    assert path.status == "max_transitions" and len(path.transitions) == 5
+    assert path.stats["start"] == "homotopy" and path.stats["homotopy_transitions"] > 5
+    a, y = next(iter(path.iter_points(indices=[0])))
+    assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-8
