@@ -97,6 +97,9 @@ START_SSNM_ITERATIONS = 25
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
+#: Under MPI the displacements of a path are formed at its end when they take at most this many
+#: doubles per rank (2 GiB); a larger path stays lazy (see _form_under_mpi).
+FORM_AT_END_LIMIT = 2 ** 28
 #: Transition cap of the homotopy start (independent of the path's max_transitions).
 HOMOTOPY_MAX_TRANSITIONS = 1000000
 
@@ -1009,7 +1012,7 @@ class ExactStepper(Stepper):
         if tree:
             _follow_all(self.system, path, self.opts, self.solver)
         if path.lazy and getattr(self.solver, "size", 1) > 1:
-            path.form()  # collective: form u now, so that a later rank-0-only use (save, plots) cannot hang
+            _form_under_mpi(path, self.solver)
         path.status = status
         self._update_stats()
         if tree:
@@ -1034,6 +1037,20 @@ class ExactStepper(Stepper):
         if what == "end":
             self.done = True
         return value
+
+
+def _form_under_mpi(path, solver):
+    """Under MPI, form the path's displacements at the end of the run (collective), so that a later
+    use on one rank only (saving, plotting) cannot hang -- as long as they fit FORM_AT_END_LIMIT
+    doubles per rank.  A larger path stays lazy (at n ~ 1e6 and 1700 branches u would take 14 GB
+    per rank): every rank must then use it alike (save, points, iter_points are collective)."""
+    n_local = int(getattr(solver, "nloc", path.n)) if solver is not None else path.n
+    pending = len(getattr(path, "_pending", ()))
+    if 2 * pending * (n_local + 2 * path.m) <= FORM_AT_END_LIMIT:
+        path.form()
+    else:
+        log.info("the path's displacements stay lazy under MPI (%d branches, %d local DOFs): save, points and "
+                 "iter_points are collective (call them on every rank)", pending, n_local)
 
 
 # ---------------------------------------------------------------------- start
@@ -1260,7 +1277,7 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
         if status == "stopped by callback":
             walk.branch.alpha_exit = walk.alpha
     if path.lazy and getattr(ctx.solver, "size", 1) > 1:
-        path.form()  # collective (see ExactStepper._finish)
+        _form_under_mpi(path, ctx.solver)  # collective (see ExactStepper._finish)
     st = ctx.solver.stats.as_dict()
     result = {"status": status, "branches": list(range(first, len(path.branches))),
               "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}
