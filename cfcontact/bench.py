@@ -50,14 +50,13 @@ import json
 import math
 import os
 import platform
-import resource
-import subprocess
 import sys
 import time
 
 import numpy as np
 
 from cfcontact import demo_models as dm
+from cfcontact.bench_stress import peak_rss_gib, run_worker
 from cfcontact.demo_models import BLOCKS_F1, BLOCKS_F2, BLOCKS_MODEL, build_blocks
 from cfcontact.errors import InputError
 from cfcontact.report import worst_residual
@@ -69,10 +68,6 @@ MAX_RUNS = 200  # Part A: most runs of one method (--min-time)
 
 #: Part B verifies every stored point up to this many points, else this many evenly spaced ones.
 VERIFY_MAX_POINTS = 400
-
-
-def peak_rss_gib() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # ru_maxrss is in KiB on Linux
 
 
 def mesh_for(n_target: float):
@@ -327,26 +322,9 @@ def run_size(n_target, friction, timeout, petsc_options, log=print, ranks=1) -> 
     for o in petsc_options:
         cmd += ["--petsc-option", o]
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
-    env = dict(os.environ)  # the worker imports the cfcontact this process runs, installed or not
-    package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = package_parent + os.pathsep + env.get("PYTHONPATH", "")
-    t0 = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-        out, err, rc = proc.stdout, proc.stderr, proc.returncode
-    except subprocess.TimeoutExpired as exc:
-        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-        err, rc = f"timeout after {timeout} s", "timeout"
-    res = {"n_target": n_target, "nx": nx, "ny": ny}
-    for line in out.splitlines():
-        if line.startswith("BENCH-PARTIAL ") or line.startswith("BENCH-RESULT "):
-            res.update(json.loads(line.split(" ", 1)[1]))
-    res["returncode"] = rc
-    res["elapsed"] = time.perf_counter() - t0
-    if rc != 0:
-        res["error"] = (err or "")[-3000:]
+    res = run_worker(cmd, {"n_target": n_target, "nx": nx, "ny": ny}, timeout, log, error_chars=3000)
+    if res["returncode"] != 0:
         res["failed_in_stage"] = res.get("stage")
-        log(f"    FAILED ({rc}) in stage {res.get('stage')}: {(err or '').strip().splitlines()[-1:] or ''}")
     return res
 
 

@@ -53,7 +53,7 @@ TRACTION = 1e7  # Pa: size of the random uniform tractions of the strips
 
 
 def peak_rss_gib() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # ru_maxrss is in KiB on Linux
 
 
 def strip(m, friction, seed=0, kind="uniform", cells_across=5):
@@ -213,8 +213,11 @@ def _closing(m, friction, shear=False):
                       tractions1={"top1": t1}, tractions2={"top1": t2}, clamp=("left1", "left2", "right2"))
 
 
-def run_row(spec, timeout, log=print) -> dict:
-    cmd = [sys.executable, "-m", "cfcontact.bench_stress", "--worker", json.dumps(spec)]
+def run_worker(cmd, res: dict, timeout, log=print, error_chars=2000) -> dict:
+    """Run a benchmark worker process (``cmd``; it imports the cfcontact this process runs,
+    installed or not) and add to ``res`` what its BENCH-PARTIAL / BENCH-RESULT lines report (the
+    partial ones survive a crash, a kill or the timeout), its return code, the elapsed time and,
+    when it failed, the tail of its stderr."""
     env = dict(os.environ)
     package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = package_parent + os.pathsep + env.get("PYTHONPATH", "")
@@ -225,15 +228,19 @@ def run_row(spec, timeout, log=print) -> dict:
     except subprocess.TimeoutExpired as exc:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
         err, rc = f"timeout after {timeout} s", "timeout"
-    res = dict(spec)
     for line in out.splitlines():
         if line.startswith("BENCH-PARTIAL ") or line.startswith("BENCH-RESULT "):
             res.update(json.loads(line.split(" ", 1)[1]))
     res["returncode"], res["elapsed"] = rc, time.perf_counter() - t0
     if rc != 0:
-        res["error"] = (err or "")[-2000:]
+        res["error"] = (err or "")[-error_chars:]
         log(f"    FAILED ({rc}) in stage {res.get('stage')}: {(err or '').strip().splitlines()[-1:] or ''}")
     return res
+
+
+def run_row(spec, timeout, log=print) -> dict:
+    cmd = [sys.executable, "-m", "cfcontact.bench_stress", "--worker", json.dumps(spec)]
+    return run_worker(cmd, dict(spec), timeout, log)
 
 
 def _row_text(r):

@@ -52,7 +52,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import logging
-import math
 import time
 from typing import Optional
 
@@ -943,7 +942,6 @@ class ExactStepper(Stepper):
                  start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None):
         self.system, self.span, self.opts = system, span, options
         self.solver = solver or get_solver(system)
-        self.finished, self.done = False, False
         self.start = None
         if resume is None:
             self._start_clock()
@@ -954,7 +952,7 @@ class ExactStepper(Stepper):
                 raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
             ln, s, self.start = _start(self.ctx, self.path, span.start, s, y0, start_sets)
             self.walk = _Walk.begin(self.ctx, self.path, ln, s, span.start)
-            self._pending = 0  # the start point is the first accepted point
+            self._pending_point = 0  # the start point is the first accepted point
         else:
             path, state = resume_parts(system, span.start, span.end, resume, "exact")
             try:
@@ -982,7 +980,6 @@ class ExactStepper(Stepper):
             self.walk = _Walk(self.ctx, path, self.ctx.line(codes, alpha), s, alpha, branch, n_trans0, start_key)
             path.status, path.resume_state = "running", None
             branch.alpha_exit = float("nan")
-            self._pending = None
 
     # ------------------------------------------------------------- stepper interface
     @property
@@ -1021,15 +1018,7 @@ class ExactStepper(Stepper):
         log.info("exact path: %s", path)
         return path
 
-    def advance(self) -> Optional[int]:
-        if self.finished:
-            return None
-        if self._pending is not None:
-            index, self._pending = self._pending, None
-            return index
-        if self.done:
-            self._finish("completed")
-            return None
+    def _step(self) -> Optional[int]:
         what, value = self.walk.step()
         if what == "status":
             self._finish(value)

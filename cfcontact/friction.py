@@ -372,22 +372,8 @@ def _start_codes(system, solver, alpha, F, pattern, opts) -> tuple:
 
 # ====================================================================== steppers
 class _FStepper(Stepper):
-    """What the two steppers in F share: the accepted-point bookkeeping of :meth:`advance` (the
-    method's step is :meth:`_step`), branches entered in their exact form, the callback's points."""
-
-    finished = done = False
-    _pending_index = None
-
-    def advance(self) -> Optional[int]:
-        if self.finished:
-            return None
-        if self._pending_index is not None:
-            idx, self._pending_index = self._pending_index, None
-            return idx
-        if self.done:
-            self._finish("completed")
-            return None
-        return self._step()
+    """What the two steppers in F share: branches entered in their exact form, the callback's
+    points (the accepted-point bookkeeping is :meth:`Stepper.advance`'s)."""
 
     def _add(self, codes, s, F, origin, parent) -> int:
         """Enter the branch of ``codes`` at F in direction s; index of its entry point."""
@@ -428,7 +414,7 @@ class FrictionStepper(_FStepper):
             self._enter(codes, s, span.start, None, None)
             self.n_trans0 = 0
             self.start_key = (_digest(codes.tobytes()), s)
-            self._pending_index = 0
+            self._pending_point = 0
         else:
             path, state = resume["path"], resume["state"]
             if not isinstance(path, FrictionPath) or path.method != "exact" or not path.branches:
@@ -450,7 +436,6 @@ class FrictionStepper(_FStepper):
                 raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
             path.status, path.resume_state = "running", None
             self.branch.alpha_exit = float("nan")
-            self._pending_index = None
             self.at_entry = set(int(j) for j in state.get("entry_zero", []))
 
     # ------------------------------------------------------------- walk
@@ -667,7 +652,7 @@ class SeedFrictionStepper(_FStepper):
         self.s = 1 if span.end > span.start else -1
         self.h, self.steps = options.h0, 0
         self._add(codes, self.s, span.start, None, None)
-        self._pending_index = 0
+        self._pending_point = 0
         self.seen: dict = {}
 
     def _consistent(self, codes, F) -> bool:

@@ -43,7 +43,6 @@ class SeedStepper(Stepper):
         self.system, self.span, self.opts = system, span, options
         self.solver = solver or get_solver(system)
         self.f1, self.f2 = system.loads_numpy()
-        self.finished = False
         if resume is None:
             self._start_clock()
             self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
@@ -54,7 +53,7 @@ class SeedStepper(Stepper):
                                                alpha_enter=self.alpha)
             self.path.add_point(self.branch, self.alpha, self.y)
             self.h, self.steps, self.last_seen, self.done = options.h0, 0, {}, False
-            self._start_pending = True  # the start point is the first accepted point
+            self._pending_point = 0  # the start point is the first accepted point
         else:  # continue exactly after the last accepted point of the stopped run
             path, state = resume_parts(system, span.start, span.end, resume, "seed")
             self._start_clock(path.stats)
@@ -67,7 +66,6 @@ class SeedStepper(Stepper):
             self.Z, self.s = self.branch.sets, self.branch.orientation
             self.alpha, self.y = path._alphas[-1], path._ys[-1]
             path.status = "running"
-            self._start_pending = False
 
     # ------------------------------------------------------------- stepper interface
     @property
@@ -99,15 +97,7 @@ class SeedStepper(Stepper):
         log.info("seed path: %s", self.path)
         return self.path
 
-    def advance(self) -> Optional[int]:
-        if self.finished:
-            return None
-        if self._start_pending:
-            self._start_pending = False
-            return 0
-        if self.done:  # the last accepted point ended the path
-            self._finish("completed")
-            return None
+    def _step(self) -> Optional[int]:
         system, solver, opts, path = self.system, self.solver, self.opts, self.path
         lo, hi, f1, f2 = self.span.lo, self.span.hi, self.f1, self.f2
         while True:

@@ -33,12 +33,15 @@ CHECKPOINT = _Checkpoint()
 
 class Stepper:
     """Base class: :meth:`run` over :meth:`advance`; subclasses set ``path``, ``solver`` and the
-    bookkeeping of :meth:`_start_clock` and implement :meth:`advance`, :meth:`point`,
-    :attr:`resume_state` and :meth:`stop`."""
+    bookkeeping of :meth:`_start_clock` and implement :meth:`_step`, :meth:`_finish`,
+    :meth:`point`, :attr:`resume_state` and :meth:`stop`."""
 
     method = ""
     path = None
     solver = None
+    finished = False  # the run has ended (advance returns None from now on)
+    done = False  # the last accepted point ended the path: the next advance finishes it "completed"
+    _pending_point = None  # index of an accepted point not handed out yet (the start point), or None
 
     def _start_clock(self, before: Optional[dict] = None):
         """Counters of this run start now; ``before``: the stats of the stopped run it continues."""
@@ -54,6 +57,22 @@ class Stepper:
 
     def advance(self) -> Optional[int]:
         """Index of the next accepted point of the path, or None when the run has ended."""
+        if self.finished:
+            return None
+        if self._pending_point is not None:
+            index, self._pending_point = self._pending_point, None
+            return index
+        if self.done:
+            self._finish("completed")
+            return None
+        return self._step()
+
+    def _step(self) -> Optional[int]:
+        """The method's own step: index of the next accepted point, or None (after :meth:`_finish`)."""
+        raise NotImplementedError
+
+    def _finish(self, status):
+        """End the run with ``status``; returns the path."""
         raise NotImplementedError
 
     def point(self, index: int):
