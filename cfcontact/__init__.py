@@ -18,6 +18,7 @@ from cfcontact.errors import (
     PairingWarning,
     PathError,
     SingularSystemError,
+    StartInterrupted,
 )
 
 __version__ = "0.1.0"
@@ -36,6 +37,7 @@ _LAZY = {
     "trace_path": ("cfcontact.path", "trace_path"),
     "SolutionPath": ("cfcontact.solution_path", "SolutionPath"),
     "PathOptions": ("cfcontact.options", "PathOptions"),
+    "StartProgress": ("cfcontact.stepper", "StartProgress"),
     "enumerate_solutions": ("cfcontact.enumerate", "enumerate_solutions"),
     "critical_friction": ("cfcontact.critical", "critical_friction"),
     "one_node": ("cfcontact.lumped", "one_node"),
@@ -76,5 +78,6 @@ def __getattr__(name):
 
 __all__ = [
     "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError",
-    "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError", *_LAZY,
+    "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError",
+    "StartInterrupted", *_LAZY,
 ]

@@ -140,14 +140,25 @@ def worker(spec) -> dict:
         return now - t0 > limit
 
     t0 = time.perf_counter()
-    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=callback)
+    try:
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=callback,
+                                    monitor=lambda progress: time.perf_counter() - t0 > limit)
+    except cfcontact.StartInterrupted as exc:  # the time limit ended the homotopy start: no path point
+        t_path = time.perf_counter() - t0
+        res.update(path_time=t_path, status="time limit (start)", transitions=0, start="homotopy",
+                   homotopy_transitions=exc.progress.transitions, homotopy_t=exc.progress.t,
+                   rss_after_path_gib=peak_rss_gib(), peak_rss_gib=peak_rss_gib(), stage="done",
+                   total_time=res["assembly_time"] + t_setup + t_path,
+                   ratio=(res["assembly_time"] + t_setup + t_path) / (res["assembly_time"] + t_fact))
+        return res
     t_path = time.perf_counter() - t0
     st = solver.stats.as_dict()
     res.update(path_time=t_path, status="time limit" if path.status == "stopped by callback" else path.status,
                transitions=len(path.transitions), folds=len(path.folds),
                time_per_transition=t_path / max(1, len(path.transitions)),
                dense_updates=st["dense_updates"], refactorizations=st["dense_factorizations"],
-               start=path.stats.get("start"), degenerate_points=path.stats.get("degenerate_points", 0),
+               start=path.stats.get("start"), homotopy_transitions=path.stats.get("homotopy_transitions", 0),
+               degenerate_points=path.stats.get("degenerate_points", 0),
                max_vanishing=path.stats.get("max_vanishing", 0), branch_points=path.stats.get("branch_points", 0),
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message[:300]} for e in path.events][:10],
                rss_after_path_gib=peak_rss_gib(), stage="verify")

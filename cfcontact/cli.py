@@ -204,7 +204,11 @@ def _run_case(args, case, run, stops, t_start):
     except Stopped as stop:
         progress.done()
         ck = os.path.join(run.partial, "checkpoint")
-        if stop.resumable:
+        if not stop.checkpoint:  # stopped before the path had a point: nothing to keep
+            run.abandon(interrupted=stop.interrupted)
+            _say(args, f"cfcontact: {stop.reason}; the path had no point yet, nothing to resume: run again to start "
+                       f"over (cfcontact run {again})")
+        elif stop.resumable:
             _say(args, f"cfcontact: {stop.reason}; checkpoint in {ck}\ncontinue with: cfcontact run --resume {again}")
         else:
             _say(args, f"cfcontact: {stop.reason}; the partial path is in {ck} (cfcontact info {run.partial}); it "

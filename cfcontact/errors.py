@@ -65,6 +65,22 @@ class PathError(CfcontactError):
         self.event = event
 
 
+class StartInterrupted(PathError):
+    """A run's monitor stopped it while its start was still being reached (the exact method's
+    homotopy start can take many transitions before the path has its first point); nothing to
+    resume: the path has no point yet.
+
+    Attributes
+    ----------
+    progress : object
+        The last :class:`cfcontact.StartProgress` the monitor saw.
+    """
+
+    def __init__(self, message, progress=None):
+        super().__init__(message)
+        self.progress = progress
+
+
 class EnumerationTooLarge(InputError):
     """Exhaustive enumeration refused because the problem is too large."""
 

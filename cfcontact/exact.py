@@ -57,13 +57,13 @@ from typing import Optional
 
 import numpy as np
 
-from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
+from cfcontact.errors import ConvergenceError, InputError, SingularSystemError, StartInterrupted
 from cfcontact.jsonio import jsonable
 from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
 from cfcontact.start import check_request, resume_parts, start_point
-from cfcontact.stepper import Stepper
+from cfcontact.stepper import StartProgress, Stepper
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -934,12 +934,14 @@ class ExactStepper(Stepper):
     accepted point; its resume state is always current, so a checkpoint is a save.
 
     ``resume``: ``{"path": SolutionPath, "state": resume state}`` of a stopped or checkpointed run
-    (the path possibly saved and loaded); new points are appended to that path."""
+    (the path possibly saved and loaded); new points are appended to that path.  ``monitor``: sees
+    the progress of a homotopy start (run by the constructor) and can abandon it, see
+    :func:`trace_exact`."""
 
     method = "exact"
 
     def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None,
-                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None):
+                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None, monitor=None):
         self.system, self.span, self.opts = system, span, options
         self.solver = solver or get_solver(system)
         self.start = None
@@ -950,7 +952,7 @@ class ExactStepper(Stepper):
             s = span.direction if orientation is None else int(orientation)
             if s not in (1, -1):
                 raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
-            ln, s, self.start = _start(self.ctx, self.path, span.start, s, y0, start_sets)
+            ln, s, self.start = _start(self.ctx, self.path, span.start, s, y0, start_sets, monitor)
             self.walk = _Walk.begin(self.ctx, self.path, ln, s, span.start)
             self._pending_point = 0  # the start point is the first accepted point
         else:
@@ -1058,7 +1060,7 @@ def _ssnm_start(ctx: _Context, alpha, y0):
         return None
 
 
-def _homotopy_start(ctx: _Context, alpha) -> tuple:
+def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
     """Sets of a solution at alpha reached by the exact method from data whose only solution is
     every node open (condensed backend only), and the number of transitions it took.
 
@@ -1066,7 +1068,10 @@ def _homotopy_start(ctx: _Context, alpha) -> tuple:
     gap c > max(0, -min w_n, F max|w_t|) with the tangential data held.  For every t <= 0 the data
     (1 - t) w_open + t w(alpha) has the single solution "all open" (an energy argument: lam^T S lam
     <= sum lam_n (w_n + F |w_t|) < 0 unless lam = 0), so the path from t = 0 cannot come back to
-    t <= 0 and, its branches being bounded and entered once each, it reaches t = 1."""
+    t <= 0 and, its branches being bounded and entered once each, it reaches t = 1.
+
+    ``monitor``: called with a :class:`~cfcontact.StartProgress` after every transition
+    of the homotopy; a truthy answer raises :class:`~cfcontact.errors.StartInterrupted`."""
     data, m = ctx.data, ctx.m
     w = (1.0 - alpha) * data.w1 + alpha * data.w2
     Fmax = float(ctx.Fv.max(initial=0.0))
@@ -1080,7 +1085,18 @@ def _homotopy_start(ctx: _Context, alpha) -> tuple:
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
     walk = _Walk.begin(hctx, path, hctx.line(np.zeros(m, dtype=np.int8), 0.0), 1, 0.0)
-    status = walk.run()
+    t0 = time.perf_counter()
+    seen = []
+
+    def watch(point):
+        seen[:] = [StartProgress("homotopy", len(path.transitions), float(point.alpha), time.perf_counter() - t0)]
+        return monitor(seen[0])
+
+    status = walk.run(watch if monitor is not None else None)
+    if status == "stopped by callback":
+        prog = seen[0]
+        raise StartInterrupted(f"the start at alpha={alpha:g} was abandoned by the monitor after {prog.transitions} "
+                               f"transition(s) of its homotopy (t = {prog.t:.6g} of 1, {prog.elapsed:.3g} s)", prog)
     for k in ("degenerate_points", "pivots", "perturbation_solves"):
         ctx.stats[k] += hctx.stats[k]
     ctx.E, data.WE = hctx.E, hctx.data.WE
@@ -1089,7 +1105,7 @@ def _homotopy_start(ctx: _Context, alpha) -> tuple:
     return walk.ln.sets, len(path.transitions)
 
 
-def _start(ctx: _Context, path, alpha, s, y0, start_sets):
+def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
     """(line, orientation, how) of the start: the branch of the start solution's sets leaving alpha
     in direction s (see :func:`_leave_start`); how = "start_sets", "ssnm", "homotopy" or
     "enumeration"."""
@@ -1106,7 +1122,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets):
     else:
         start_sets, how = _ssnm_start(ctx, alpha, y0), "ssnm"
         if start_sets is None and ctx.condensed:
-            start_sets, transitions = _homotopy_start(ctx, alpha)
+            start_sets, transitions = _homotopy_start(ctx, alpha, monitor)
             how = "homotopy"
             ctx.stats["homotopy_transitions"] = transitions
             log.info("SSNM did not converge at alpha_start=%g; the start was reached by the exact method from "
@@ -1161,7 +1177,7 @@ def _enumeration_start(system, alpha, path):
 def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, y0=None,
                 options: Optional[PathOptions] = None, solver=None, tie_rtol: Optional[float] = None,
                 start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None,
-                resume=None, callback=None, tree: bool = False) -> SolutionPath:
+                resume=None, callback=None, tree: bool = False, monitor=None) -> SolutionPath:
     """Exact piecewise-affine continuation of the solution path from alpha_start towards alpha_end.
 
     Parameters
@@ -1184,6 +1200,10 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         the entry of every branch, the end); a truthy return stops the run
     tree : also follow every alternative of every branch point (see :func:`trace_tree`; the same
         as ``options.tree``)
+    monitor : called with a :class:`~cfcontact.StartProgress` after every transition of
+        a homotopy start (when SSNM does not converge at alpha_start, before the path's first
+        point); a truthy return abandons the run with
+        :class:`~cfcontact.errors.StartInterrupted` (a time limit, a progress display)
 
     Returns a :class:`SolutionPath` (method "exact"); transitions carry the exact root alpha
     (bracket (alpha, alpha)), every change (``Transition.changes``) and, at degenerate points,
@@ -1200,7 +1220,7 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
         overrides["tree"] = True
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
     return ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
-                        orientation=orientation).run(callback)
+                        orientation=orientation, monitor=monitor).run(callback)
 
 
 def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, **kwargs) -> SolutionPath:

@@ -339,18 +339,19 @@ def _check_request(system, alpha, F_start, F_end, options, method, solver):
     return a, AlphaSpan(F0, F1, min(F0, F1), max(F0, F1)), opts, solver
 
 
-def _start_codes(system, solver, alpha, F, pattern, opts) -> tuple:
+def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple:
     """(codes, how): the state codes of a solution at the load f(alpha) with friction F pattern:
     SSNM in the multipliers, else the exact method's homotopy from the all-open state, else
     enumeration (small problems).  At F = 0 a closed node with friction slips in the direction of
-    its T u (stick when T u = 0): the states of F = 0+."""
+    its T u (stick when T u = 0): the states of F = 0+.  ``monitor``: as for
+    :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
     sysF = friction_system(system, F, pattern)
     view = solver_at(solver, sysF)
     f = system.load(alpha)
     sets, how = view.ssnm_sets(f, opts.tol, opts.max_iter), "ssnm"
     if sets is None:
         ctx = _Context(sysF, view, opts, alpha, alpha + 1.0, float(opts.tie_rtol))
-        sets, _ = _homotopy_start(ctx, alpha)
+        sets, _ = _homotopy_start(ctx, alpha, monitor)
         how = "homotopy"
     if sets is None and system.m <= 8:
         from cfcontact.enumerate import enumerate_solutions
@@ -392,11 +393,12 @@ class _FStepper(Stepper):
 
 class FrictionStepper(_FStepper):
     """The exact continuation in F (see the module docstring) as a stepper: one transition per
-    accepted point; ``resume`` as for :class:`cfcontact.exact.ExactStepper`."""
+    accepted point; ``resume`` and ``monitor`` as for :class:`cfcontact.exact.ExactStepper`."""
 
     method = "exact"
 
-    def __init__(self, system, alpha, span: AlphaSpan, options: PathOptions, solver, pattern=None, resume=None):
+    def __init__(self, system, alpha, span: AlphaSpan, options: PathOptions, solver, pattern=None, resume=None,
+                 monitor=None):
         self.system, self.span, self.opts, self.solver = system, span, options, solver
         self.alpha = float(alpha)
         self.pattern = friction_pattern(system) if pattern is None else np.asarray(pattern, dtype=float)
@@ -407,7 +409,7 @@ class FrictionStepper(_FStepper):
             self._start_clock()
             self.path = FrictionPath.for_friction(system, "exact", span.start, span.end, self.alpha,
                                                   options.to_dict(), self.pattern)
-            codes, how = _start_codes(system, solver, self.alpha, span.start, self.pattern, options)
+            codes, how = _start_codes(system, solver, self.alpha, span.start, self.pattern, options, monitor)
             self.start = how
             s = 1 if span.end > span.start else -1
             codes, s = self._leave_start(codes, span.start, s)
@@ -640,7 +642,7 @@ class SeedFrictionStepper(_FStepper):
 
     method = "seed"
 
-    def __init__(self, system, alpha, span: AlphaSpan, options: PathOptions, solver, pattern=None):
+    def __init__(self, system, alpha, span: AlphaSpan, options: PathOptions, solver, pattern=None, monitor=None):
         self.system, self.span, self.opts, self.solver = system, span, options, solver
         self.alpha = float(alpha)
         self.pattern = friction_pattern(system) if pattern is None else np.asarray(pattern, dtype=float)
@@ -648,7 +650,7 @@ class SeedFrictionStepper(_FStepper):
         self._start_clock()
         self.path = FrictionPath.for_friction(system, "seed", span.start, span.end, self.alpha, options.to_dict(),
                                               self.pattern)
-        codes, self.start = _start_codes(system, solver, self.alpha, span.start, self.pattern, options)
+        codes, self.start = _start_codes(system, solver, self.alpha, span.start, self.pattern, options, monitor)
         self.s = 1 if span.end > span.start else -1
         self.h, self.steps = options.h0, 0
         self._add(codes, self.s, span.start, None, None)
@@ -759,20 +761,21 @@ class SeedFrictionStepper(_FStepper):
 
 
 # ====================================================================== entry point
-def friction_stepper(system, alpha, F_start, F_end, method="exact", options=None, solver=None, resume=None):
+def friction_stepper(system, alpha, F_start, F_end, method="exact", options=None, solver=None, resume=None,
+                     monitor=None):
     """The stepper of a friction path (validated request): :class:`FrictionStepper` or
     :class:`SeedFrictionStepper`."""
     a, span, opts, solver = _check_request(system, alpha, F_start, F_end, options, method, solver)
     if method == "seed":
         if resume is not None:
             raise InputError("the seed method in F cannot resume (trace it again)")
-        return SeedFrictionStepper(system, a, span, opts, solver)
-    return FrictionStepper(system, a, span, opts, solver, resume=resume)
+        return SeedFrictionStepper(system, a, span, opts, solver, monitor=monitor)
+    return FrictionStepper(system, a, span, opts, solver, resume=resume, monitor=monitor)
 
 
 def trace_friction_path(system, alpha: float, F_start: float, F_end: float, method: str = "exact",
                         options: Optional[PathOptions] = None, solver=None, callback=None, resume=None,
-                        **overrides) -> FrictionPath:
+                        monitor=None, **overrides) -> FrictionPath:
     """Follow the solutions at the load f(alpha) as the friction coefficient runs from F_start to
     F_end (see the module docstring).
 
@@ -780,7 +783,8 @@ def trace_friction_path(system, alpha: float, F_start: float, F_end: float, meth
     the reference); ``options``: PathOptions (``max_transitions``, ``tie_rtol``, ``tol`` and
     ``max_iter`` of the start; the seed's step options in F) or keyword ``overrides``;
     ``solver``: the system's :class:`~cfcontact.condensed.CondensedSolver` (default: its cached
-    one); ``callback`` and ``resume`` as for :func:`cfcontact.exact.trace_exact` (exact only).
+    one); ``callback`` and ``resume`` as for :func:`cfcontact.exact.trace_exact` (exact only);
+    ``monitor`` as there (the start's homotopy, both methods).
 
     Returns a :class:`FrictionPath` (status "completed", "stuck" -- see its events, e.g.
     "unbounded" when a branch becomes singular before any of its constraints vanishes --,
@@ -788,7 +792,7 @@ def trace_friction_path(system, alpha: float, F_start: float, F_end: float, meth
     if overrides:
         options = PathOptions.with_overrides(options, **overrides)
     t0 = time.perf_counter()
-    stepper = friction_stepper(system, alpha, F_start, F_end, method, options, solver, resume)
+    stepper = friction_stepper(system, alpha, F_start, F_end, method, options, solver, resume, monitor)
     path = stepper.run(callback)
     log.info("friction path traced in %.3g s", time.perf_counter() - t0)
     return path

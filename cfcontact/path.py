@@ -56,7 +56,7 @@ def select_solver(system: ContactSystem, method: str = "exact", backend: str = "
 
 
 def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, method: str = "seed", y0=None,
-                 solver=None, resume=None):
+                 solver=None, resume=None, monitor=None):
     """The stepper of ``method`` for a validated request (see :func:`trace_path`).  K is checked
     first (:meth:`~cfcontact.system.ContactSystem.check_positive_definite`: not positive definite
     or singular, from the inertia of its Cholesky factorization)."""
@@ -64,7 +64,7 @@ def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, m
     if method == "exact":
         from cfcontact.exact import ExactStepper
 
-        return ExactStepper(system, span, options, solver, y0=y0, resume=resume)
+        return ExactStepper(system, span, options, solver, y0=y0, resume=resume, monitor=monitor)
     from cfcontact.seed import SeedStepper
 
     return SeedStepper(system, span, options, solver, y0=y0, resume=resume)
@@ -78,7 +78,7 @@ def check_resume_method(resume, method):
 
 def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float = 1.0, method: str = "seed",
                y0=None, options: Optional[PathOptions] = None, solver=None, resume=None, backend: str = "auto",
-               callback: Optional[Callable] = None, **overrides) -> SolutionPath:
+               callback: Optional[Callable] = None, monitor: Optional[Callable] = None, **overrides) -> SolutionPath:
     """Follow the solution path of (4) along f(alpha) from alpha_start towards alpha_end.
 
     Parameters
@@ -94,6 +94,10 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
         ``tie_rtol=1e-9``)
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint`; a truthy
         return stops the run (status "stopped by callback")
+    monitor : called during a long start, before the path's first point (the exact method's
+        homotopy start when SSNM does not converge at alpha_start), with a
+        :class:`~cfcontact.StartProgress` after each of its transitions; a truthy
+        return abandons the run: :class:`~cfcontact.errors.StartInterrupted` (nothing to resume)
     resume : continue a run stopped by its callback instead of starting anew: a dict
         ``{"path": SolutionPath, "state": path.resume_state}`` (the stopped run's path, possibly
         saved and loaded, and the state it left in ``path.resume_state``: for "seed" the loop
@@ -106,4 +110,4 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     check_resume_method(resume, method)
     system.check_positive_definite()  # before any backend factors K (cached: path_stepper checks again for free)
     solver = solver if solver is not None else select_solver(system, method, backend)
-    return path_stepper(system, span, opts, method, y0, solver, resume).run(callback)
+    return path_stepper(system, span, opts, method, y0, solver, resume, monitor).run(callback)

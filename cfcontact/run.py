@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional
 
 from cfcontact.case import CaseError, build_system, path_request, physics
-from cfcontact.errors import InputError
+from cfcontact.errors import InputError, StartInterrupted
 from cfcontact.jsonio import read_json, write_json
 from cfcontact.material import DEFAULT_MATERIAL
 from cfcontact.path import path_stepper, select_solver
@@ -62,11 +62,14 @@ CHECKPOINT_DIRS = ("checkpoint", ".checkpoint-old")
 
 
 class Stopped(Exception):
-    """The run was stopped before its end; a checkpoint was written (``resumable``: with a resume state)."""
+    """The run was stopped before its end; a checkpoint was written (``resumable``: with a resume
+    state), unless ``checkpoint`` is False (stopped while its start was being reached: the path had
+    no point yet)."""
 
-    def __init__(self, reason, interrupted=False, resumable=True):
+    def __init__(self, reason, interrupted=False, resumable=True, checkpoint=True):
         super().__init__(reason)
         self.reason, self.interrupted, self.resumable = reason, interrupted, resumable
+        self.checkpoint = checkpoint
 
 
 @dataclass(frozen=True)
@@ -164,6 +167,18 @@ class Runner:
             self.reason = f"stopped at alpha={pt.alpha:.8g} (reached {stops.stop_at_alpha:g})"
         elif stops.checkpoint_every and time.monotonic() - self.last_checkpoint >= stops.checkpoint_every:
             return CHECKPOINT
+        return self.reason
+
+    def on_start(self, progress):
+        """The monitor of a long start (a :class:`~cfcontact.StartProgress`, before the
+        path's first point): the progress line, and the reason to abandon the run (Ctrl-C, the
+        time limit) or None.  The conditions on the path (folds, transitions, alpha) wait for it."""
+        self.display.update(f"reaching the start ({progress.stage}): t={progress.t:.6g}  transitions "
+                            f"{progress.transitions}  {time.monotonic() - self.t_start:.1f} s")
+        if self.interrupted:
+            self.reason = "interrupted (Ctrl-C)"
+        elif self.stops.time_limit is not None and time.monotonic() - self.t_start >= self.stops.time_limit:
+            self.reason = f"time limit of {self.stops.time_limit:g} s reached"
         return self.reason
 
     def checkpoint_saved(self):
@@ -602,8 +617,14 @@ class CaseRun:
         system.check_positive_definite()
         solver = select_solver(system, *(("exact", "condensed") if friction else (p["method"], p["backend"])))
         runner.begin(solver, self.resume["path"] if self.resume else None)
-        stepper = (_friction_stepper(system, p, options, solver, self.resume) if friction else
-                   path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume))
+        try:
+            stepper = (_friction_stepper(system, p, options, solver, self.resume, runner.on_start) if friction else
+                       path_stepper(system, span, options, p["method"], solver=solver, resume=self.resume,
+                                    monitor=runner.on_start))
+        except StartInterrupted as exc:
+            runner.display.clear()
+            raise Stopped(f"{runner.reason} while reaching the start ({exc.progress.transitions} transition(s) of "
+                          f"its homotopy)", interrupted=runner.interrupted, resumable=False, checkpoint=False) from None
 
         def save(path, state):
             runner.display.clear()
@@ -678,12 +699,12 @@ class CaseRun:
 
 
 # ============================================================ saved paths
-def _friction_stepper(system, p, options, solver, resume):
+def _friction_stepper(system, p, options, solver, resume, monitor=None):
     """[path] parameter = "friction": the stepper of :mod:`cfcontact.friction`."""
     from cfcontact.friction import friction_stepper
 
     return friction_stepper(system, p["alpha_start"], p["friction_start"], p["friction_end"], p["method"], options,
-                            solver, resume)
+                            solver, resume, monitor)
 
 
 def load_saved_path(dirname) -> SolutionPath:

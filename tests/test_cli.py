@@ -724,3 +724,44 @@ def test_stresses_include_the_prescribed_displacements(tmp_path, monkeypatch, ca
     assert cli.main(["render", str(tmp_path / "case_out"), "--stress", "--animation", str(tmp_path / "a.gif"),
                      "-q"]) == 0
     check(sol, got["animation"](sol))
+
+
+HOMOTOPY = """
+title = "a start SSNM does not reach"
+[geometry]
+kind = "two_blocks"
+nx = 12
+ny = 4
+cell = "triangle"
+[contact]
+friction = 30.0
+[loads.f1]
+top1 = [1.304e8, -1.532e8]
+right1 = [-1.255e8, -1.359e8]
+right2 = [1.891e8, -1.585e8]
+[loads.f2]
+top1 = [8.26e7, -1.562e8]
+right1 = [1.214e8, -1.587e8]
+right2 = [-1.561e8, -6.14e7]
+bottom2 = [-1.236e8, -1.51e8]
+[path]
+method = "exact"
+[output]
+plot = false
+render_panel = false
+"""
+
+
+def test_time_limit_during_a_homotopy_start(tmp_path, capsys):
+    """SSNM does not converge at alpha_start on this case (F = 30); the start is reached by the
+    exact method's homotopy, which a time limit (and Ctrl-C) stops too: exit 3, nothing left
+    behind (the path had no point), and the next run starts over without --force."""
+    case = _write(tmp_path, HOMOTOPY)
+    assert cli.main(["run", case, "--time-limit", "1e-6"]) == 3
+    assert "time limit of 1e-06 s reached while reaching the start" in capsys.readouterr().out
+    assert not (tmp_path / "case_out").exists() and not (tmp_path / "case_out.partial").exists()
+    assert cli.main(["run", case, "-q"]) == 0
+    summary = json.loads((tmp_path / "case_out" / "summary.json").read_text())
+    path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
+    assert path.stats["start"] == "homotopy" and path.stats["homotopy_transitions"] > 10
+    assert summary["status"] == "completed"

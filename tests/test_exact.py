@@ -567,3 +567,35 @@ def test_homotopy_start_is_not_bounded_by_the_path_cap():
     assert path.stats["start"] == "homotopy" and path.stats["homotopy_transitions"] > 5
     a, y = next(iter(path.iter_points(indices=[0])))
     assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-8
+
+
+def test_monitor_sees_and_can_abandon_a_homotopy_start():
+    """A lumped model whose SSNM start does not converge at F = 30: the monitor sees every
+    transition of the homotopy start (t from 0 to 1, counts rising); a monitor that never answers
+    True leaves the path as it is without one; a truthy answer abandons the run with
+    StartInterrupted carrying the last progress.  A path whose SSNM start converges never calls
+    the monitor."""
+    system = random_system(6, 143, friction=30.0)
+    ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
+    assert ref.stats["start"] == "homotopy" and ref.stats["homotopy_transitions"] >= 3
+    seen = []
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed",
+                                monitor=lambda p: seen.append(p))
+    assert [t.alpha for t in path.transitions] == [t.alpha for t in ref.transitions]
+    assert all(isinstance(p, cfcontact.StartProgress) and p.stage == "homotopy" for p in seen)
+    assert [p.transitions for p in seen] == sorted(p.transitions for p in seen)
+    assert seen[0].t == 0.0 and seen[-1].t == 1.0 and seen[-1].transitions == ref.stats["homotopy_transitions"]
+    with pytest.raises(cfcontact.StartInterrupted, match=r"after 2 transition\(s\) of its homotopy") as info:
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed",
+                             monitor=lambda p: p.transitions >= 2)
+    assert info.value.progress.transitions == 2 and 0.0 < info.value.progress.t < 1.0
+    # the start of a path over the friction coefficient too
+    seen = []
+    assert cfcontact.trace_friction_path(system, 0.0, 30.0, 1.0, monitor=seen.append).stats["start"] == "homotopy"
+    assert seen and seen[-1].t == 1.0
+    with pytest.raises(cfcontact.StartInterrupted):
+        cfcontact.trace_friction_path(system, 0.0, 30.0, 1.0, monitor=lambda p: True)
+    easy = random_system(6, 1, friction=0.3)
+    calls = []
+    assert cfcontact.trace_path(easy, 0.0, 1.0, method="exact", monitor=calls.append).stats["start"] == "ssnm"
+    assert calls == []
