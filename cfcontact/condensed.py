@@ -77,6 +77,7 @@ SCHUR_CHECK_RTOL = 1e-11
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
+_dger = sla.blas.dger  # the point model's rank-1 updates in place (Fortran-ordered)
 # per-node state codes (ssnm.STATE_NAMES order) and lam_t / (F lam_n) of a slipping node by code
 _OPEN, _STICK, _SLIP_P, _SLIP_M = 0, 1, 2, 3
 _SLIP_SIGN = np.array([0.0, 0.0, 1.0, -1.0])
@@ -832,6 +833,175 @@ def _sym_times(S, X):
     return S[nz].T @ X[nz]
 
 
+def _node_types(solver, codes):
+    """(closed, S tangential row, slip coefficient) per node of the state codes: what each node's
+    two rows of M(Z) are (see :class:`_Updater`)."""
+    closed = codes != _OPEN
+    t_s = (codes == _STICK) & ~solver.no_tangent
+    coef = solver.F * _SLIP_SIGN[codes]
+    return closed, t_s, coef
+
+
+def _full_solve(solver, entry, B, rho):
+    """M(Z)^-1 B (2m x c) in the full form with the S rows scaled by rho, from the LU ``entry`` of
+    Z's reduced system (:meth:`CondensedSolver._factor_codes`): the unknowns fixed by unit rows
+    take their right-hand side, the reduced system gets the rest."""
+    lu, piv, rows, slip, coef, _ = entry
+    m, S = solver.m, solver.S
+    X = np.array(B, dtype=float, copy=True)
+    fixed = np.ones(2 * m, dtype=bool)
+    fixed[rows] = False
+    nz = (fixed & (X != 0.0).any(axis=1)).nonzero()[0]  # fixed unknowns with non-zero values
+    if rows.size:
+        rhs = X[rows] / rho
+        if nz.size:
+            rhs = rhs - S[np.ix_(rows, nz)] @ X[nz]
+        X[rows] = _getrs(lu, piv, rhs, trans=1)[0]
+    if slip.size:
+        X[m + slip] += coef[:, None] * X[slip]
+    return X
+
+
+def _scaled_rhs(types, W, rho):
+    """r(Z, W) of the full form with the S rows scaled by rho: rho w on S rows, 0 on unit rows."""
+    closed, t_s, _ = types
+    m = closed.size
+    B = np.zeros_like(W)
+    B[:m] = np.where(closed[:, None], rho * W[:m], 0.0)
+    B[m:] = np.where(t_s[:, None], rho * W[m:], 0.0)
+    return B
+
+
+def _scaled_residual(types, W, X, SX, rho):
+    """r(Z, W) - M(Z) X (S rows scaled by rho), with SX = S X."""
+    closed, t_s, coef = types
+    m = closed.size
+    R = np.empty_like(X)
+    R[:m] = np.where(closed[:, None], rho * (W[:m] - SX[:m]), -X[:m])
+    R[m:] = np.where(t_s[:, None], rho * (W[m:] - SX[m:]), -(X[m:] - coef[:, None] * X[:m]))
+    return R
+
+
+#: The point model's updated solutions are trusted while the residual of M(Z) X = r(Z, W) (S
+#: rows scaled by rho) stays below this share of the size of its terms; else it starts over
+#: with a fresh factorization at that branch.
+POINT_MODEL_RTOL = 1e-11
+
+
+class PointModel:
+    """The branches through one degenerate point, one node's state change at a time: rates and
+    perturbation responses by rank-2 updates instead of a solve per branch.
+
+    The pivots of a degenerate point (:func:`cfcontact.exact._resolve`) visit branches that differ
+    from their predecessor in one node, always one of the ``nodes`` with a vanishing indicator at
+    the point.  In the full form M(Z) lam = r(Z, w) (:class:`_Updater`) such a change replaces the
+    two rows q of that node: M' = M + P_q Delta, r' = r + P_q dr.  Kept for the current sets: X =
+    M^-1 r(W) for the model's right-hand sides W (the rates' dw and the perturbation loads), U =
+    M^-1 P_R for the rows R of all ``nodes``, and S[R] U.  Then, with C = I + Delta U_q (2 x 2),
+
+        X' = X - U_q C^-1 (Delta X - dr),   U' = U - U_q C^-1 Delta U,
+
+    O(m |nodes|) per change instead of a solve with a new factorization.  S X' is formed afresh,
+    and the residual of M' X' = r' checks every update (POINT_MODEL_RTOL): when it fails, or C is
+    near singular, the model starts over with a fresh factorization at the new sets (which raises
+    SingularSystemError when they are singular, as a fresh solve would)."""
+
+    def __init__(self, solver, codes, W, nodes):
+        self.s = solver
+        self.m = solver.m
+        self.rho = solver.system.rho
+        self.W = np.asarray(W, dtype=float)
+        self.nodes = np.unique(np.asarray(nodes, dtype=np.intp))
+        self.local = {int(j): k for k, j in enumerate(self.nodes)}
+        R = np.empty(2 * self.nodes.size, dtype=np.intp)
+        R[0::2], R[1::2] = self.nodes, self.m + self.nodes
+        self.R = R
+        self.updates = 0
+        self.rebuilds = 0
+        self._build(np.asarray(codes, dtype=np.int8))
+
+    def _build(self, codes):
+        s, m = self.s, self.m
+        entry = s._factor_codes(b"point-model", codes)  # SingularSystemError when M(codes) is singular
+        s._lu.pop(b"point-model", None)
+        types = _node_types(s, codes)
+        z2, p = self.R.size, self.W.shape[1]
+        B = np.zeros((2 * m, p + z2))
+        B[:, :p] = _scaled_rhs(types, self.W, self.rho)
+        B[self.R, p + np.arange(z2)] = 1.0
+        XU = _full_solve(s, entry, B, self.rho)
+        # kept as one array: [[X, U], [S[R] X, S[R] U]] (one rank-2 update changes it all)
+        self.A = np.asfortranarray(np.vstack([XU, s.S[self.R] @ XU]))  # Fortran: updated in place (dger)
+        self.SX = _sym_times(s.S, XU[:, :p])
+        self.codes, self.types = codes.copy(), types
+        self.rebuilds += 1
+        s.stats.dense_solves += p
+
+    @property
+    def X(self):
+        return self.A[:2 * self.m, :self.W.shape[1]]
+
+    def solution(self):
+        """(X, S X) of the current sets (2m x p each, the columns of W)."""
+        return self.X.copy(), self.SX
+
+    def move_to(self, codes):
+        """Update the model to ``codes`` (differing from its sets only at its nodes, one node at a
+        time); returns (X, S X), or None when the change is outside the model (another node) or
+        an intermediate branch is singular.  Raises SingularSystemError when ``codes`` is."""
+        codes = np.asarray(codes, dtype=np.int8)
+        diff = (codes != self.codes).nonzero()[0]
+        if any(int(i) not in self.local for i in diff):
+            return None
+        for i in diff.tolist():
+            step = self.codes.copy()
+            step[i] = codes[i]
+            if not self._change(i, step):
+                if i != diff[-1]:
+                    return None  # an intermediate branch: leave it to a fresh solve of the target
+                self._build(step)
+        return self.solution()
+
+    def _change(self, i, codes) -> bool:
+        """One node's change by the rank-2 update; False when it cannot be trusted."""
+        s, m, rho = self.s, self.m, self.rho
+        k = self.local[i]
+        p = self.W.shape[1]
+        A = self.A
+        new = _node_types(s, codes)
+        old = self.types
+        # node i's two rows of M (old and new types) applied to every column of A: Delta [X, U]
+        Yn, Yt = A[i], A[m + i]
+        Sn, St = A[2 * m + 2 * k], A[2 * m + 2 * k + 1]
+        rows = []
+        for closed, t_s, coef in (new, old):
+            rows.append((rho * Sn if closed[i] else Yn, rho * St if t_s[i] else Yt - coef[i] * Yn))
+        D = np.array([rows[0][0] - rows[1][0], rows[0][1] - rows[1][1]])
+        # ... minus the change of the right-hand side (X columns only): Delta X - dr
+        w = self.W[[i, m + i]]
+        D[0, :p] -= rho * w[0] * (float(new[0][i]) - float(old[0][i]))
+        D[1, :p] -= rho * w[1] * (float(new[1][i]) - float(old[1][i]))
+        C = np.eye(2) + D[:, [p + 2 * k, p + 2 * k + 1]]
+        det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
+        if not abs(det) > 1e-10 * max(np.abs(C).max() ** 2, 1.0):
+            return False
+        G = np.array([[C[1, 1], -C[0, 1]], [-C[1, 0], C[0, 0]]]) @ D / det
+        cols = A[:, [p + 2 * k, p + 2 * k + 1]]  # a copy: the update below overwrites A
+        X2 = A[:2 * m, :p] - cols[:2 * m] @ G[:, :p]
+        SX2 = _sym_times(s.S, X2)
+        R = _scaled_residual(new, self.W, X2, SX2, rho)
+        size = rho * (np.abs(SX2).max(initial=0.0) + np.abs(self.W).max(initial=0.0)) + np.abs(X2).max(initial=0.0)
+        if not np.abs(R).max(initial=0.0) <= POINT_MODEL_RTOL * size:
+            return False
+        _dger(-1.0, cols[:, 0], G[0], a=A, overwrite_a=True)  # A -= cols G, in place
+        _dger(-1.0, cols[:, 1], G[1], a=A, overwrite_a=True)
+        self.SX = SX2
+        self.codes, self.types = codes, new
+        self.updates += 1
+        s.stats.dense_solves += p
+        return True
+
+
 #: The exact method's branches are solved by updates of one kept factorization (:class:`_Updater`)
 #: from this many multipliers (2m) on; below, a fresh LU per branch is cheaper than the updates'
 #: bookkeeping.
@@ -884,12 +1054,7 @@ class _Updater:
 
     # ------------------------------------------------------------ node rows
     def _types(self, codes):
-        """(closed, S tangential row, slip coefficient) per node of the state codes."""
-        s = self.s
-        closed = codes != _OPEN
-        t_s = (codes == _STICK) & ~s.no_tangent
-        coef = s.F * _SLIP_SIGN[codes]
-        return closed, t_s, coef
+        return _node_types(self.s, codes)
 
     def rebase(self, codes):
         """Factor M(codes) (its reduced system) and start over with it as the base."""
@@ -899,10 +1064,6 @@ class _Updater:
         s._lu.pop(b"updater-base", None)  # kept here, not in the solver's cache
         self.codes0 = codes.copy()
         self.types0 = self._types(codes)
-        lu, piv, rows, slip, coef, support = self.entry0
-        fixed = np.ones(2 * self.m, dtype=bool)
-        fixed[rows] = False
-        self.fixed0 = fixed
         self.pos = {}  # node -> its index in the cache
         self.nodes = []
         self.Zc = np.empty((2 * self.m, 16))  # columns 2q, 2q + 1: M0^-1 e_j, M0^-1 e_(m+j) of cached node q
@@ -911,19 +1072,7 @@ class _Updater:
 
     def _base_solve(self, B):
         """M(Z0)^-1 B (2m x c), the S rows of M(Z0) scaled by rho."""
-        lu, piv, rows, slip, coef, _ = self.entry0
-        m, S = self.m, self.s.S
-        X = np.array(B, dtype=float, copy=True)
-        fixed = self.fixed0
-        nz = (fixed & (X != 0.0).any(axis=1)).nonzero()[0]  # fixed unknowns with non-zero values
-        if rows.size:
-            rhs = X[rows] / self.rho
-            if nz.size:
-                rhs = rhs - S[np.ix_(rows, nz)] @ X[nz]
-            X[rows] = _getrs(lu, piv, rhs, trans=1)[0]
-        if slip.size:
-            X[m + slip] += coef[:, None] * X[slip]
-        return X
+        return _full_solve(self.s, self.entry0, B, self.rho)
 
     def _ensure(self, D):
         """Cache Zc and the S products for the nodes D."""
@@ -996,12 +1145,7 @@ class _Updater:
 
     def _residual(self, types, W, X, SX):
         """r(Z, W) - M(Z) X (S rows scaled by rho), with SX = S X."""
-        m, rho = self.m, self.rho
-        closed, t_s, coef = types
-        R = np.empty_like(X)
-        R[:m] = np.where(closed[:, None], rho * (W[:m] - SX[:m]), -X[:m])
-        R[m:] = np.where(t_s[:, None], rho * (W[m:] - SX[m:]), -(X[m:] - coef[:, None] * X[:m]))
-        return R
+        return _scaled_residual(types, W, X, SX, self.rho)
 
     def branch_data(self, W, codes, refine=True):
         """(lam, g[, Eg]) as :meth:`CondensedSolver.branch_data`, by updates."""
@@ -1018,9 +1162,7 @@ class _Updater:
             self.reasons["rank"] = self.reasons.get("rank", 0) + 1
             self.rebase(codes)
             D = D[:0]
-        B = np.zeros_like(W)
-        B[:m] = np.where(closed[:, None], self.rho * W[:m], 0.0)
-        B[m:] = np.where(t_s[:, None], self.rho * W[m:], 0.0)
+        B = _scaled_rhs(types, W, self.rho)
         rho = s.system.rho
         F = s.F[:, None]
 

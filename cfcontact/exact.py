@@ -81,6 +81,13 @@ FULL_BACKEND_RTOL_FACTOR = 100.0
 ERROR_FACTOR = 16.0
 #: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them).
 PERTURBATION_COLUMNS = 2
+#: A degenerate point's intermediate branches come from rank-2 updates of one model of the point
+#: (:class:`cfcontact.condensed.PointModel`) from its this-many-th pivot on; the first ones are
+#: solved afresh (a point with few pivots does not repay the model) ...
+POINT_MODEL_MIN_PIVOTS = 3
+#: ... on systems with at least this many multipliers (2m); below, a fresh solve per pivot costs
+#: no more than an update's bookkeeping (measured: equal at m = 48, the model 3x faster at m = 96).
+POINT_MODEL_MIN_SIZE = 160
 #: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
 PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
@@ -285,6 +292,36 @@ class _CondensedData:
         L, G = self.solver.branch_data(self.dw[:, None], key, codes, plain=True)
         return L[:, 0], G[:, 0]
 
+    def point_rates(self, point, codes, at, J):
+        """(lam', g', P) of the branch of ``codes`` through the degenerate point of ``at`` from the
+        point's :class:`~cfcontact.condensed.PointModel` (built at the first call, updated one
+        pivot at a time after), or None when the model cannot answer (a fresh solve then does).
+        ``point``: the point's record [at, calls, model]; P: the indicators' responses to the
+        first J perturbation loads."""
+        from cfcontact.condensed import PointModel
+
+        model = point[2]
+        if model is False:
+            return None
+        if model is None:
+            m = self.dw.size // 2
+            zero = np.abs(at.g) <= at.ind_tv  # the indicators vanishing at the point
+            nodes = np.union1d(np.flatnonzero(zero) % m, np.flatnonzero(codes != at.codes))
+            try:
+                model = PointModel(self.solver, codes, np.column_stack([self.dw, self.WE[:, :J]]), nodes)
+            except SingularSystemError:
+                point[2] = False
+                return None
+            point[2] = model
+            X, SX = model.solution()
+        else:
+            res = model.move_to(codes)
+            if res is None:
+                return None
+            X, SX = res
+        G = self.solver._ind(X, model.W, SX)
+        return X[:, 0], G[:, 0], G[:, 1:]
+
     def perturbation(self, line, E_loads):
         """Indicator responses (3m x J) of the branch to the perturbation loads."""
         if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
@@ -354,8 +391,9 @@ class _Context:
         self.visited: dict = {}  # digest of canonical codes -> (orientation, alpha) of its first entry
         self._lines: dict = {}  # (key, alpha) -> _Line, for the current transition point
         self.E = None  # perturbation loads (n x J)
+        self._point = None  # the degenerate point being crossed: [its first branch, vertex lines, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
-                      "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0}
+                      "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0, "point_updates": 0}
 
     def line(self, codes, alpha) -> _Line:
         codes = np.asarray(codes, dtype=np.int8)
@@ -386,9 +424,15 @@ class _Context:
         ln = self._lines.get(ck)
         if ln is not None:
             return ln
-        dlam, dg = self.data.rates(codes, b"exact:" + key)
+        res = self._point_rates(codes, at)
+        if res is None:
+            dlam, dg = self.data.rates(codes, b"exact:" + key)
+            P = None
+        else:
+            dlam, dg, P = res
         ln = _Line(codes, b"exact:" + key, alpha, at.lam, dlam, at.g, dg, at.scale, 0.0, self.rtol, self.F0_index,
                    None, at.source)
+        ln.P = P
         ln.ind_tv, ln.ind_ts = at.ind_tv, at.ind_ts  # the point's own precision, the rates' of the point's branch
         ln.tol_v = np.broadcast_to(ln.ind_tv, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_tv) else np.full(
             ln.cidx.size, ln.ind_tv)
@@ -397,6 +441,21 @@ class _Context:
         ln.vertex = True
         self._lines[ck] = ln
         return ln
+
+    def _point_rates(self, codes, at: _Line):
+        """(lam', g', P) of a vertex line from the point's model once the point has needed
+        POINT_MODEL_MIN_PIVOTS of them, else None."""
+        pt = self._point
+        if pt is None or pt[0] is not at:
+            pt = self._point = [at, 0, None]
+        pt[1] += 1
+        if pt[1] < POINT_MODEL_MIN_PIVOTS or 2 * self.m < POINT_MODEL_MIN_SIZE:
+            return None
+        self.perturbation_rows(at, PERTURBATION_COLUMNS)  # the perturbation loads' data
+        res = self.data.point_rates(pt, codes, at, PERTURBATION_COLUMNS)
+        if res is not None:
+            self.stats["point_updates"] += 1
+        return res
 
     def perturbation_rows(self, ln: _Line, J: int) -> np.ndarray:
         """The constraints' responses to the first J perturbation loads (k x J)."""
@@ -1212,8 +1271,9 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     its first branch: a closed curve of solutions), "cycling" (a branch entered twice: a numerical
     inconsistency, see events), "max_transitions" or "stopped by callback".  ``path.stats`` adds
     ``start`` (how the start was found: "ssnm", "homotopy", "enumeration", "start_sets"),
-    ``degenerate_points``, ``pivots``, ``max_vanishing``, ``branch_points`` and
-    ``homotopy_transitions``.
+    ``degenerate_points``, ``pivots``, ``max_vanishing``, ``branch_points``,
+    ``homotopy_transitions`` and ``point_updates`` (intermediate branches of degenerate points
+    solved by the point's rank-2 updates, :class:`~cfcontact.condensed.PointModel`).
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
     if tree:

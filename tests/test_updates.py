@@ -182,3 +182,58 @@ def test_updates_near_singular_branches_keep_the_path():
     ta, tb = np.array([t.alpha for t in a.transitions]), np.array([t.alpha for t in b.transitions])
     assert np.abs(ta - tb).max() <= 1e-10 * np.abs(tb).max()
     assert (a.transitions[17000].node, a.transitions[17000].set) == (82, "nu")
+
+
+def test_point_model_equals_fresh_solves():
+    """The point model of a degenerate point (rank-2 updates, one node's state at a time, from a
+    first branch) gives the multipliers of a fresh factorization on a long random walk through
+    the states of its nodes; a change of a node outside it is refused (None), a singular branch
+    is reported as a fresh solve reports it."""
+    from cfcontact.condensed import PointModel
+
+    rng = np.random.default_rng(11)
+    m = 40
+    friction = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0.2, 3.0, m))
+    system = random_system(m, 5, friction=friction, extra_dofs=10)
+    solver = CondensedSolver(system, SolverOptions(updates=False))
+    W = np.column_stack([solver.load_data_many(list(system.loads_numpy())), rng.standard_normal((2 * m, 2))])
+    F0 = system.friction_vector == 0.0
+    nodes = np.sort(rng.choice(m, size=15, replace=False))
+    codes = np.where(F0, SLIP_P, STICK).astype(np.int8)
+    model = PointModel(solver, codes, W, nodes)
+    for step in range(200):
+        i = int(rng.choice(nodes))
+        codes = codes.copy()
+        codes[i] = SLIP_P if F0[i] and codes[i] == OPEN else (OPEN if F0[i] else rng.choice(
+            [c for c in (OPEN, STICK, SLIP_P, SLIP_M) if c != codes[i]]))
+        X, SX = model.move_to(codes)
+        lam_ref, _ = fresh(solver, codes, W)
+        assert np.abs(X - lam_ref).max() <= 1e-10 * np.abs(lam_ref).max(), step
+        np.testing.assert_allclose(SX, solver.S @ X, rtol=0, atol=1e-12 * np.abs(solver.S @ X).max())
+    assert model.updates > 150
+    outside = codes.copy()
+    j = int(np.setdiff1d(np.arange(m), nodes)[0])
+    outside[j] = OPEN if outside[j] != OPEN else (SLIP_P if F0[j] else STICK)
+    assert model.move_to(outside) is None
+
+
+@pytest.mark.parametrize("friction, updates", [(0.5, True), (2.0, False),
+                                               pytest.param(2.0, True, marks=pytest.mark.slow)])
+def test_paths_with_point_model_equal_paths_without(friction, updates, monkeypatch):
+    """Four identical chains (m = 100): the transitions of one are degenerate points of four
+    nodes (at F = 2.0 with folds, the copies partly separated), crossed by pivots whose
+    intermediate branches come from the point model from the third on.  The path is the same as
+    with a fresh solve per pivot, pivot by pivot (each run with a new solver: the updates' kept
+    factorization has a history)."""
+    import cfcontact.exact as exact
+
+    system = _chain(25, friction, 5, 4)
+    paths = {}
+    for use in (True, False):
+        monkeypatch.setattr(exact, "POINT_MODEL_MIN_SIZE", 160 if use else 10 ** 9)
+        solver = CondensedSolver(system, SolverOptions(updates=updates))
+        paths[use] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    assert paths[True].stats["point_updates"] > 20 and paths[False].stats["point_updates"] == 0
+    _same_paths(paths[True], paths[False])
+    assert [t.pivots for t in paths[True].transitions] == [t.pivots for t in paths[False].transitions]
+    assert paths[True].stats["degenerate_points"] > 10
