@@ -88,6 +88,9 @@ POINT_MODEL_MIN_PIVOTS = 3
 #: ... on systems with at least this many multipliers (2m); below, a fresh solve per pivot costs
 #: no more than an update's bookkeeping (measured: equal at m = 48, the model 3x faster at m = 96).
 POINT_MODEL_MIN_SIZE = 160
+#: Units in the last place of alpha within which two roots count as one transition point (alpha
+#: is rounded: a steep constraint's value there carries its rate times that rounding).
+ALPHA_ULPS = 4.0
 #: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
 PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
@@ -184,6 +187,14 @@ class _Unresolved(Exception):
         self.kind, self.data = kind, data or {}
 
 
+def _alpha_rounding(alpha, dc):
+    """What a constraint's value at alpha can be off by because alpha itself is rounded (a
+    transition point is known to a few units in its last place): ALPHA_ULPS ulps times its rate.
+    Two roots within that of each other cannot be ordered by their values: they are tied, and the
+    lexicographic rule orders them."""
+    return ALPHA_ULPS * np.spacing(abs(float(alpha))) * np.abs(dc)
+
+
 class _Line:
     """One branch (sets fixed): multipliers, indicators and constraints, affine in alpha.
 
@@ -214,6 +225,7 @@ class _Line:
         else:
             self.tol_v = np.full(self.cidx.size, self.ind_tv)
             self.tol_s = np.full(self.cidx.size, self.ind_ts)
+        self.tol_v = self.tol_v + _alpha_rounding(self.alpha, self.dc)
         self.P = None  # indicator responses to the perturbation loads (3m x J), when needed
         self.vertex = False  # an intermediate branch of a degenerate point (Context.vertex_line)
         self._sets = None
@@ -438,6 +450,7 @@ class _Context:
             ln.cidx.size, ln.ind_tv)
         ln.tol_s = np.broadcast_to(ln.ind_ts, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_ts) else np.full(
             ln.cidx.size, ln.ind_ts)
+        ln.tol_v = ln.tol_v + _alpha_rounding(alpha, ln.dc)
         ln.vertex = True
         self._lines[ck] = ln
         return ln
@@ -532,7 +545,8 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     bound = ctx.hi if s > 0 else ctx.lo
     if s * (a_star - bound) >= 0:
         return None, None, None
-    err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate  # uncertainty of each root
+    # uncertainty of each root: its data's, and the rounding of alpha itself near a_star
+    err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate + ALPHA_ULPS * np.spacing(abs(a_star))
     tied = dec[(t - t[j]) <= err + err[j]]
     return a_star, tied, float(err[j])
 
