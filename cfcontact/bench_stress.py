@@ -300,6 +300,7 @@ def _random_loads(build, friction, paths, seed0, log):
     """``paths`` random load paths on a demo model: f1, f2 random combinations of the model's own
     loads and of unit tractions on its edges (the same kinds of terms, random sizes)."""
     import cfcontact
+    from cfcontact.path import select_solver
 
     base = build(friction)
     f1, f2 = base.loads_numpy()
@@ -321,6 +322,16 @@ def _random_loads(build, friction, paths, seed0, log):
         except cfcontact.CfcontactError as exc:
             rec = {"status": "start failure", "error": str(exc)[:200], "transitions": 0}
         rec["time"] = time.perf_counter() - t0
+        if rec.get("start") == "homotopy":
+            # the same path from its start branch's sets (the start given): what the homotopy
+            # start adds to this path, apart from the path's own length
+            again = base.with_loads(g1, g2)
+            first = path.branches[0]
+            t0 = time.perf_counter()
+            same = cfcontact.trace_exact(again, 0.0, 1.0, start_sets=first.sets, orientation=first.orientation,
+                                         solver=select_solver(again, "exact"))
+            rec["time_given_start"] = time.perf_counter() - t0
+            rec["same_path"] = [t.alpha for t in same.transitions] == [t.alpha for t in path.transitions]
         out.append(rec)
     return out
 
@@ -335,6 +346,7 @@ def _summary(recs) -> dict:
         starts.setdefault(r.get("start") or "-", []).append(r["time"])
     ssnm_t = np.median(starts["ssnm"]) if starts.get("ssnm") else float("nan")
     hom = starts.get("homotopy", [])
+    own = [r["time"] / r["time_given_start"] for r in recs if r.get("time_given_start")]
     return {"runs": len(recs), "status": st, "transitions_total": int(sum(r["transitions"] for r in recs)),
             "transitions_max": int(max(r["transitions"] for r in recs)),
             "degenerate_points": int(sum(r.get("degenerate_points", 0) for r in recs)),
@@ -342,7 +354,11 @@ def _summary(recs) -> dict:
             "starts": {k: len(v) for k, v in starts.items()},
             "homotopy_start_median_time": float(np.median(hom)) if hom else None,
             "ssnm_start_median_time": float(ssnm_t),
-            "homotopy_over_ssnm": float(np.median(hom) / ssnm_t) if hom and ssnm_t > 0 else None}
+            "homotopy_over_ssnm": float(np.median(hom) / ssnm_t) if hom and ssnm_t > 0 else None,
+            # per path: its run with the homotopy start over the same path with its start given
+            "homotopy_over_given_start": float(np.median(own)) if own else None,
+            "homotopy_over_given_start_max": float(np.max(own)) if own else None,
+            "homotopy_same_path": int(sum(bool(r.get("same_path")) for r in recs if "same_path" in r))}
 
 
 def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None) -> dict:
