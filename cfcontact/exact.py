@@ -299,10 +299,12 @@ class _CondensedData:
 
         return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
 
-    def rates(self, codes, key):
-        """(lam', g'): the rates of the branch of ``codes`` (one column: w2 - w1)."""
-        L, G = self.solver.branch_data(self.dw[:, None], key, codes, plain=True)
-        return L[:, 0], G[:, 0]
+    def rates(self, codes, key, J=0):
+        """(lam', g', P): the rates of the branch of ``codes`` (one column: w2 - w1) and, with J > 0,
+        the indicators' responses to the first J perturbation loads (3m x J; else None)."""
+        W = self.dw[:, None] if not J else np.column_stack([self.dw, self.WE[:, :J]])
+        L, G = self.solver.branch_data(W, key, codes, plain=True)
+        return L[:, 0], G[:, 0], (G[:, 1:] if J else None)
 
     def point_rates(self, point, codes, at, J):
         """(lam', g', P) of the branch of ``codes`` through the degenerate point of ``at`` from the
@@ -437,11 +439,12 @@ class _Context:
         if ln is not None:
             return ln
         res = self._point_rates(codes, at)
-        if res is None:
-            dlam, dg = self.data.rates(codes, b"exact:" + key)
-            P = None
-        else:
+        if res is not None:
             dlam, dg, P = res
+        elif self.data.WE is not None:  # the perturbation responses with the rates, in one solve
+            dlam, dg, P = self.data.rates(codes, b"exact:" + key, PERTURBATION_COLUMNS)
+        else:
+            dlam, dg, P = self.data.rates(codes, b"exact:" + key)
         ln = _Line(codes, b"exact:" + key, alpha, at.lam, dlam, at.g, dg, at.scale, 0.0, self.rtol, self.F0_index,
                    None, at.source)
         ln.P = P
