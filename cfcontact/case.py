@@ -17,19 +17,17 @@ Nothing here imports dolfinx or PETSc at import time.
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import hashlib
 import json
 import math
 import os
-import signal
-import threading
 import tomllib
 from dataclasses import dataclass, fields
 from typing import Any, Optional
 
 from cfcontact.errors import InputError
+from cfcontact.interrupts import python_sigint, sigint_deferred  # noqa: F401 (the CLI imports them from here)
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
 from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
 from cfcontact.pairing import OBSTACLE_KEYS, PAIRINGS
@@ -514,35 +512,6 @@ def builtin_groups(kind, geometry) -> tuple:
             names = tuple(n for n in names if n not in ("left1", "left2")) + ("sym1", "sym2")
         return names
     return _BODY1_PIECES + _BODY2_PIECES
-
-
-def python_sigint():
-    """gmsh 4.8 sets SIGINT to SIG_DFL when it is imported (validating a geometry imports it): a
-    Ctrl-C would kill the process silently.  Put Python's handler back (main thread only)."""
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
-@contextlib.contextmanager
-def sigint_deferred():
-    """Context: a Ctrl-C while heavy libraries are imported is raised after them, at a clean point.
-
-    A KeyboardInterrupt raised inside an import can be misreported: dolfinx 0.9 checks its
-    dependencies on import and turns any exception while importing basix into an ImportError
-    ("basix is broken").  Meanwhile Python's handler only records the Ctrl-C; when the block ends
-    the previous handler is back (Python's own where an import set SIG_DFL, as gmsh 4.8 does) and
-    the recorded Ctrl-C is raised as KeyboardInterrupt.  Main thread only (elsewhere: no effect)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught = []
-    old = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler if old in (signal.SIG_DFL, None) else old)
-    if caught:
-        raise KeyboardInterrupt
 
 
 # ------------------------------------------------------------------ validation

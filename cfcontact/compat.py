@@ -27,10 +27,8 @@ import inspect
 import logging
 import os
 import re
-import signal
 import sys
 import tempfile
-import threading
 import time
 
 import numpy as np
@@ -40,6 +38,8 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.mesh
 from petsc4py import PETSc
+
+from cfcontact.interrupts import python_sigint
 
 
 def parse_version(text: str) -> tuple:
@@ -308,15 +308,6 @@ def _silenced_stderr():
         os.dup2(saved, 2)
         os.close(saved)
         os.close(devnull)
-
-
-def python_sigint():
-    """Put Python's Ctrl-C handling back where gmsh removed it.  gmsh 4.8 sets SIGINT to SIG_DFL
-    when it is imported (until ``gmsh.finalize``), later versions in ``gmsh.initialize`` unless
-    ``interruptible=False``: a Ctrl-C would kill the process without a word.  With Python's
-    handler it raises KeyboardInterrupt once gmsh's C code returns (main thread only)."""
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @contextlib.contextmanager

@@ -1,0 +1,42 @@
+"""Ctrl-C around the libraries that change its handling (gmsh) or misreport it (dolfinx 0.9).
+
+Imported by the FEM layer (:mod:`cfcontact.compat`) and the application (:mod:`cfcontact.case`);
+it imports nothing heavy itself.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+
+def python_sigint():
+    """Put Python's Ctrl-C handling back where gmsh removed it.  gmsh 4.8 sets SIGINT to SIG_DFL
+    when it is imported (until ``gmsh.finalize``), later versions in ``gmsh.initialize`` unless
+    ``interruptible=False``: a Ctrl-C would kill the process without a word.  With Python's
+    handler it raises KeyboardInterrupt once gmsh's C code returns (main thread only)."""
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@contextlib.contextmanager
+def sigint_deferred():
+    """Context: a Ctrl-C while heavy libraries are imported is raised after them, at a clean point.
+
+    A KeyboardInterrupt raised inside an import can be misreported: dolfinx 0.9 checks its
+    dependencies on import and turns any exception while importing basix into an ImportError
+    ("basix is broken").  Meanwhile Python's handler only records the Ctrl-C; when the block ends
+    the previous handler is back (Python's own where an import set SIG_DFL, as gmsh 4.8 does) and
+    the recorded Ctrl-C is raised as KeyboardInterrupt.  Main thread only (elsewhere: no effect)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    old = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if old in (signal.SIG_DFL, None) else old)
+    if caught:
+        raise KeyboardInterrupt
