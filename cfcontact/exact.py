@@ -916,6 +916,10 @@ class _Walk:
     ``alpha`` (its entry), its index in the path, the transition count the cap counts from, and the
     branches entered so far (``ctx.visited``)."""
 
+    #: how the transitions are logged: the parameter's name and the logging level (a homotopy start
+    #: logs its own parameter t, at DEBUG: its transitions are not the path's)
+    parameter, log_level = "alpha", logging.INFO
+
     def __init__(self, ctx: _Context, path: SolutionPath, ln: _Line, s: int, alpha: float, branch,
                  n_trans0: int, start_key):
         self.ctx, self.path, self.ln, self.s, self.alpha, self.branch = ctx, path, ln, s, alpha, branch
@@ -981,7 +985,7 @@ class _Walk:
                  "transition": tr.to_dict()})))
             return "status", kind
         path.transitions.append(tr)
-        log.info("alpha=%.12g %s transition: %s", a_star, tr.kind, tr.changes)
+        log.log(self.log_level, "%s=%.12g %s transition: %s", self.parameter, a_star, tr.kind, tr.changes)
         self.branch = _add_branch(path, nxt, d, origin=tr.index, parent=branch.index, alpha_enter=a_star)
         self.ln, self.s, self.alpha = nxt, d, a_star
         return "point", path.add_point(self.branch, a_star)
@@ -1161,6 +1165,7 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
     walk = _Walk.begin(hctx, path, hctx.line(np.zeros(m, dtype=np.int8), 0.0), 1, 0.0)
+    walk.parameter, walk.log_level = "homotopy t", logging.DEBUG
     t0 = time.perf_counter()
     seen = []
 
