@@ -206,7 +206,7 @@ class _Line:
                  "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex")
 
     def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
-                 source=None, eg=None):
+                 source=None, eg=None, tol=None):
         self.codes, self.key, self.alpha = codes, key, float(alpha)
         self.lam, self.dlam, self.g, self.dg = lam, dlam, g, dg
         self.cidx, self.csgn, self.cnode = state_constraints(codes, F0_index)
@@ -214,18 +214,20 @@ class _Line:
         self.dc = self.csgn * dg[self.cidx]
         self.scale = scale_v
         # what counts as zero for each indicator value / rate: the local size times rtol, plus the
-        # measured rounding error (eg: 3m x 2, from iterative refinement) times a safety factor
-        self.ind_tv = rtol * scale_v + 1e-300
-        self.ind_ts = rtol * scale_s + 1e-300
-        if eg is not None:
-            self.ind_tv = self.ind_tv + ERROR_FACTOR * eg[:, 0]
-            self.ind_ts = self.ind_ts + ERROR_FACTOR * eg[:, 1]
-            self.tol_v = self.ind_tv[self.cidx]
-            self.tol_s = self.ind_ts[self.cidx]
+        # measured rounding error (eg: 3m x 2, from iterative refinement) times a safety factor;
+        # ``tol``: given (ind_tv, ind_ts) instead (an intermediate branch of a point: the point's)
+        if tol is not None:
+            self.ind_tv, self.ind_ts = tol
         else:
-            self.tol_v = np.full(self.cidx.size, self.ind_tv)
-            self.tol_s = np.full(self.cidx.size, self.ind_ts)
-        self.tol_v = self.tol_v + _alpha_rounding(self.alpha, self.dc)
+            self.ind_tv = rtol * scale_v + 1e-300
+            self.ind_ts = rtol * scale_s + 1e-300
+            if eg is not None:
+                self.ind_tv = self.ind_tv + ERROR_FACTOR * eg[:, 0]
+                self.ind_ts = self.ind_ts + ERROR_FACTOR * eg[:, 1]
+        tv, ts = self.ind_tv, self.ind_ts
+        self.tol_v = (tv[self.cidx] if np.ndim(tv) else np.full(self.cidx.size, tv)) + _alpha_rounding(self.alpha,
+                                                                                                       self.dc)
+        self.tol_s = ts[self.cidx] if np.ndim(ts) else np.full(self.cidx.size, ts)
         self.P = None  # indicator responses to the perturbation loads (3m x J), when needed
         self.vertex = False  # an intermediate branch of a degenerate point (Context.vertex_line)
         self._sets = None
@@ -445,15 +447,10 @@ class _Context:
             dlam, dg, P = self.data.rates(codes, b"exact:" + key, PERTURBATION_COLUMNS)
         else:
             dlam, dg, P = self.data.rates(codes, b"exact:" + key)
+        # the point's own precision, the rates' of the point's branch
         ln = _Line(codes, b"exact:" + key, alpha, at.lam, dlam, at.g, dg, at.scale, 0.0, self.rtol, self.F0_index,
-                   None, at.source)
+                   None, at.source, tol=(at.ind_tv, at.ind_ts))
         ln.P = P
-        ln.ind_tv, ln.ind_ts = at.ind_tv, at.ind_ts  # the point's own precision, the rates' of the point's branch
-        ln.tol_v = np.broadcast_to(ln.ind_tv, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_tv) else np.full(
-            ln.cidx.size, ln.ind_tv)
-        ln.tol_s = np.broadcast_to(ln.ind_ts, (3 * self.m,))[ln.cidx] if np.ndim(ln.ind_ts) else np.full(
-            ln.cidx.size, ln.ind_ts)
-        ln.tol_v = ln.tol_v + _alpha_rounding(alpha, ln.dc)
         ln.vertex = True
         self._lines[ck] = ln
         return ln
