@@ -321,7 +321,7 @@ class _CondensedData:
             return None
         if model is None:
             m = self.dw.size // 2
-            zero = np.abs(at.g) <= at.ind_tv  # the indicators vanishing at the point
+            zero = np.abs(at.g) <= at.ind_tv + _alpha_rounding(at.alpha, at.dg)  # vanishing at the point
             nodes = np.union1d(np.flatnonzero(zero) % m, np.flatnonzero(codes != at.codes))
             try:
                 model = PointModel(self.solver, codes, np.column_stack([self.dw, self.WE[:, :J]]), nodes)
@@ -1175,7 +1175,7 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
         prog = seen[0]
         raise StartInterrupted(f"the start at alpha={alpha:g} was abandoned by the monitor after {prog.transitions} "
                                f"transition(s) of its homotopy (t = {prog.t:.6g} of 1, {prog.elapsed:.3g} s)", prog)
-    for k in ("degenerate_points", "pivots", "perturbation_solves"):
+    for k in ("degenerate_points", "pivots", "perturbation_solves", "point_updates"):
         ctx.stats[k] += hctx.stats[k]
     ctx.E, data.WE = hctx.E, hctx.data.WE
     if status != "completed" or walk.s != 1:
