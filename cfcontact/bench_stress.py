@@ -144,16 +144,27 @@ def worker(spec) -> dict:
         path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=callback,
                                     monitor=lambda progress: time.perf_counter() - t0 > limit)
     except cfcontact.StartInterrupted as exc:  # the time limit ended the homotopy start: no path point
-        t_path = time.perf_counter() - t0
-        res.update(path_time=t_path, status="time limit (start)", transitions=0, start="homotopy",
-                   homotopy_transitions=exc.progress.transitions, homotopy_t=exc.progress.t,
-                   rss_after_path_gib=peak_rss_gib(), peak_rss_gib=peak_rss_gib(), stage="done",
-                   total_time=res["assembly_time"] + t_setup + t_path,
-                   ratio=(res["assembly_time"] + t_setup + t_path) / (res["assembly_time"] + t_fact))
-        return res
+        path = None
+        res.update(status="time limit (start)", transitions=0, start="homotopy",
+                   homotopy_transitions=exc.progress.transitions, homotopy_t=exc.progress.t)
     t_path = time.perf_counter() - t0
+    res.update(path_time=t_path, rss_after_path_gib=peak_rss_gib())
+    if path is not None:
+        _measure_path(spec, res, system, solver, path, branch_times, dump)
+    total = res["assembly_time"] + t_setup + t_path
+    res.update(total_time=total, ratio=total / (res["assembly_time"] + t_fact), peak_rss_gib=peak_rss_gib(),
+               stage="done")
+    return res
+
+
+def _measure_path(spec, res, system, solver, path, branch_times, dump):
+    """A worker's measures of its traced path (added to ``res``): counts, the cost of its
+    degenerate points against an ordinary branch, the worst residual of a sample of its points."""
+    from cfcontact.condensed import CondensedSolver
+
+    t_path = res["path_time"]
     st = solver.stats.as_dict()
-    res.update(path_time=t_path, status="time limit" if path.status == "stopped by callback" else path.status,
+    res.update(status="time limit" if path.status == "stopped by callback" else path.status,
                transitions=len(path.transitions), folds=len(path.folds),
                time_per_transition=t_path / max(1, len(path.transitions)),
                dense_updates=st["dense_updates"], refactorizations=st["dense_factorizations"],
@@ -161,7 +172,7 @@ def worker(spec) -> dict:
                degenerate_points=path.stats.get("degenerate_points", 0),
                max_vanishing=path.stats.get("max_vanishing", 0), branch_points=path.stats.get("branch_points", 0),
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message[:300]} for e in path.events][:10],
-               rss_after_path_gib=peak_rss_gib(), stage="verify")
+               stage="verify")
     degenerate = [i for i, t in enumerate(path.transitions) if t.pivots]
     if degenerate and len(branch_times) > 1:
         # branch_times[i + 1]: from the entry of branch i to that of branch i + 1 (transition i)
@@ -178,10 +189,6 @@ def worker(spec) -> dict:
     t0 = time.perf_counter()
     res["worst_residual"] = _verify_sample(system, path, solver)
     res["verify_time"] = time.perf_counter() - t0
-    total = res["assembly_time"] + t_setup + t_path
-    res.update(total_time=total, ratio=total / (res["assembly_time"] + t_fact), peak_rss_gib=peak_rss_gib(),
-               stage="done")
-    return res
 
 
 def _branch_times(system, solver) -> list:
