@@ -1150,7 +1150,6 @@ class _Updater:
     def branch_data(self, W, codes, refine=True):
         """(lam, g[, Eg]) as :meth:`CondensedSolver.branch_data`, by updates."""
         s = self.s
-        m = self.m
         codes = np.asarray(codes, dtype=np.int8)
         types = self._types(codes)
         closed, t_s, coef = types
@@ -1163,14 +1162,6 @@ class _Updater:
             self.rebase(codes)
             D = D[:0]
         B = _scaled_rhs(types, W, self.rho)
-        rho = s.system.rho
-        F = s.F[:, None]
-
-        def ind(lam, w, Slam):
-            g = lam + rho * (w - Slam)
-            b = g[m:]
-            return np.concatenate((g[:m], b - F * lam[:m], b + F * lam[:m]))
-
         for attempt in range(2):
             self._ensure(D)
             solve = self._solver(types, D)
@@ -1204,10 +1195,10 @@ class _Updater:
                 if step and size > 0.25 * sizes[-2]:
                     ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
                     break
-            Eg = Eg_scale * np.abs(ind(applied[0], np.zeros_like(W), applied[1]))
+            Eg = Eg_scale * np.abs(s._ind(applied[0], np.zeros_like(W), applied[1]))
             reason = "refine"
             if ok and D.size:  # accurate enough for the path's tie tests (a fresh LU's accuracy)?
-                size = np.abs(L).max(axis=0, initial=0.0) + rho * np.abs(W).max(axis=0, initial=0.0)
+                size = np.abs(L).max(axis=0, initial=0.0) + self.rho * np.abs(W).max(axis=0, initial=0.0)
                 ok = bool((Eg.max(axis=0, initial=0.0) <= UPDATE_ERR_RTOL * size).all())
                 reason = "error"
             if ok or attempt == 1 or not D.size:
@@ -1218,7 +1209,7 @@ class _Updater:
         s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
         s.stats.dense_updates += 1
         self.updates += 1
-        G = ind(L, W, SL)
+        G = s._ind(L, W, SL)
         if not refine:
             return L, G
         return L, G, Eg
