@@ -63,7 +63,7 @@ from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
 from cfcontact.start import check_request, resume_parts, start_point
-from cfcontact.stepper import StartProgress, Stepper
+from cfcontact.stepper import StartProgress, Stepper, check_monitor
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -1019,6 +1019,7 @@ class ExactStepper(Stepper):
 
     def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None,
                  start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None, monitor=None):
+        check_monitor(monitor)
         self.system, self.span, self.opts = system, span, options
         self.solver = solver or get_solver(system)
         self.start = None

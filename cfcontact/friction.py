@@ -58,7 +58,7 @@ from cfcontact.options import AlphaSpan, PathOptions
 from cfcontact.rational import RationalBranch, friction_pattern, mu_at, polish_root, solver_at
 from cfcontact.solution_path import SET_NAMES, Branch, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, Solution, verify
-from cfcontact.stepper import Stepper
+from cfcontact.stepper import Stepper, check_monitor
 
 log = logging.getLogger(__name__)
 
@@ -766,6 +766,7 @@ def friction_stepper(system, alpha, F_start, F_end, method="exact", options=None
     """The stepper of a friction path (validated request): :class:`FrictionStepper` or
     :class:`SeedFrictionStepper`."""
     a, span, opts, solver = _check_request(system, alpha, F_start, F_end, options, method, solver)
+    check_monitor(monitor)
     if method == "seed":
         if resume is not None:
             raise InputError("the seed method in F cannot resume (trace it again)")

@@ -31,6 +31,7 @@ from cfcontact.solution_path import (
 )
 from cfcontact.ssnm import get_solver
 from cfcontact.start import START_RHO_FACTORS, branch_endpoints, check_request, resume_parts, start_point
+from cfcontact.stepper import check_monitor
 from cfcontact.system import ContactSystem
 
 __all__ = ["trace_path", "path_stepper", "select_solver", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
@@ -67,6 +68,7 @@ def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, m
         return ExactStepper(system, span, options, solver, y0=y0, resume=resume, monitor=monitor)
     from cfcontact.seed import SeedStepper
 
+    check_monitor(monitor)  # (the seed method's start is SSNM alone: nothing to monitor)
     return SeedStepper(system, span, options, solver, y0=y0, resume=resume)
 
 

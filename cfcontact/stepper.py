@@ -24,6 +24,8 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Optional
 
+from cfcontact.errors import InputError
+
 
 @dataclass(frozen=True)
 class StartProgress:
@@ -37,6 +39,12 @@ class StartProgress:
     transitions: int
     t: float
     elapsed: float
+
+
+def check_monitor(monitor):
+    """InputError unless ``monitor`` is None or a callable (it is called with a StartProgress)."""
+    if monitor is not None and not callable(monitor):
+        raise InputError(f"monitor must be a function of a StartProgress (or None), got {monitor!r}")
 
 
 class _Checkpoint:

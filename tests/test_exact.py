@@ -595,6 +595,12 @@ def test_monitor_sees_and_can_abandon_a_homotopy_start():
     assert seen and seen[-1].t == 1.0
     with pytest.raises(cfcontact.StartInterrupted):
         cfcontact.trace_friction_path(system, 0.0, 30.0, 1.0, monitor=lambda p: True)
+    # a monitor that cannot be called is refused before any work, whichever the method
+    for method in ("exact", "seed"):
+        with pytest.raises(cfcontact.InputError, match="monitor must be a function of a StartProgress.*got 5"):
+            cfcontact.trace_path(system, 0.0, 1.0, method=method, monitor=5)
+    with pytest.raises(cfcontact.InputError, match="monitor must be"):
+        cfcontact.trace_friction_path(system, 0.0, 30.0, 1.0, monitor="later")
     easy = random_system(6, 1, friction=0.3)
     calls = []
     assert cfcontact.trace_path(easy, 0.0, 1.0, method="exact", monitor=calls.append).stats["start"] == "ssnm"
