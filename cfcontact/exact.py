@@ -301,11 +301,15 @@ class _CondensedData:
 
         return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
 
+    def _rate_columns(self, J):
+        """The right-hand sides of an intermediate branch of a degenerate point: the rates' w2 - w1
+        and the first J perturbation loads' data (2m x (1 + J))."""
+        return self.dw[:, None] if not J else np.column_stack([self.dw, self.WE[:, :J]])
+
     def rates(self, codes, key, J=0):
         """(lam', g', P): the rates of the branch of ``codes`` (one column: w2 - w1) and, with J > 0,
         the indicators' responses to the first J perturbation loads (3m x J; else None)."""
-        W = self.dw[:, None] if not J else np.column_stack([self.dw, self.WE[:, :J]])
-        L, G = self.solver.branch_data(W, key, codes, plain=True)
+        L, G = self.solver.branch_data(self._rate_columns(J), key, codes, plain=True)
         return L[:, 0], G[:, 0], (G[:, 1:] if J else None)
 
     def point_rates(self, point, codes, at, J):
@@ -324,7 +328,7 @@ class _CondensedData:
             zero = np.abs(at.g) <= at.ind_tv + _alpha_rounding(at.alpha, at.dg)  # vanishing at the point
             nodes = np.union1d(np.flatnonzero(zero) % m, np.flatnonzero(codes != at.codes))
             try:
-                model = PointModel(self.solver, codes, np.column_stack([self.dw, self.WE[:, :J]]), nodes)
+                model = PointModel(self.solver, codes, self._rate_columns(J), nodes)
             except SingularSystemError:
                 point[2] = False
                 return None
