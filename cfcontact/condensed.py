@@ -207,6 +207,9 @@ class CondensedSolver:
             if S is not None:
                 self.condensation = "forward"
         self.S = S if S is not None else self._schur()
+        #: S^T, C-ordered: its rows are S's columns (S lam over few non-zero lam by rows); S itself
+        #: when S is exactly symmetric, else a copy (S by solves is not symmetrized, see :meth:`_schur`)
+        self.St = self.S if np.array_equal(self.S, self.S.T) else np.ascontiguousarray(self.S.T)
         self.timings["condensation"] = time.perf_counter() - t0
 
     def _schur_accurate(self, S) -> bool:
@@ -361,7 +364,7 @@ class CondensedSolver:
             x.resetArray()
 
     def _condense_sparse(self) -> Optional[np.ndarray]:
-        """B K^-1 B^T (before symmetrization) from one multi-RHS solve with B^T as a sparse
+        """B K^-1 B^T (column by column, not symmetrized) from one multi-RHS solve with B^T as a sparse
         right-hand side (one rank): PETSc passes it to MUMPS as such (ICNTL(20)), which skips
         the zeros in the forward substitution -- the same numbers as with dense columns (checked
         bitwise on the demo), in about 60% of the time.  None when the factorization does not
@@ -424,7 +427,11 @@ class CondensedSolver:
                 cols = np.arange(c0, min(m2, c0 + block))
                 S[:, cols] = self.B_local @ self._kinv_columns(cols)
             S = self._allreduce(np.ascontiguousarray(S))
-        return 0.5 * (S + S.T)
+        # Not symmetrized: S's columns B K^-1 b_j are what the solve that forms u = K^-1 (f - B^T lam)
+        # does column by column, so B u = w - S lam holds to the solves' own rounding.  S - S^T is
+        # 3e-13 of S on a 20 x 1 strip (m = 1000), yet (S + S^T) / 2 left the formed points' gaps
+        # N u - g at closed nodes off by up to 3.3e-8 of the multipliers' size instead of 2.4e-10.
+        return S
 
     # ---------------------------------------------------------------- loads
     def load_data(self, f: np.ndarray) -> np.ndarray:
@@ -630,7 +637,7 @@ class CondensedSolver:
         if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
             if len(self._lu_extra) > 2 * max(64, self.options.cache):
                 self._lu_extra.clear()
-            extra = (lu, self.S.take(support, axis=0), np.searchsorted(rows[:rows.size - (rows >= self.m).sum()],
+            extra = (lu, self.St.take(support, axis=0), np.searchsorted(rows[:rows.size - (rows >= self.m).sum()],
                                                                        slip))
             self._lu_extra[key] = extra
         _, Ssup, pos = extra
@@ -685,7 +692,7 @@ class CondensedSolver:
         m, rho = self.m, self.system.rho
         nz = support if support is not None else (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
         if 2 * nz.size < lam.shape[0]:  # open nodes carry no force: only the columns of S of the others
-            Bu = w - self.S.take(nz, axis=0).T @ lam[nz]  # S is symmetric: rows are contiguous
+            Bu = w - self.St.take(nz, axis=0).T @ lam[nz]  # columns of S as rows of S^T: contiguous
         else:
             Bu = w - self.S @ lam
         g = lam + rho * Bu  # (a; b) with a = lam_n + rho N u, b = lam_t + rho T u
@@ -825,12 +832,12 @@ class CondensedSolver:
         self._loads.clear()
 
 
-def _sym_times(S, X):
-    """S X for a symmetric S, reading only the rows of S where X has non-zero rows."""
+def _s_times(solver, X):
+    """S X, reading only the columns of S (rows of S^T) where X has non-zero rows."""
     nz = (X != 0.0).any(axis=1).nonzero()[0]
     if 4 * nz.size >= X.shape[0]:
-        return S @ X
-    return S[nz].T @ X[nz]
+        return solver.S @ X
+    return solver.St[nz].T @ X[nz]
 
 
 def _node_types(solver, codes):
@@ -932,7 +939,7 @@ class PointModel:
         XU = _full_solve(s, entry, B, self.rho)
         # kept as one array: [[X, U], [S[R] X, S[R] U]] (one rank-2 update changes it all)
         self.A = np.asfortranarray(np.vstack([XU, s.S[self.R] @ XU]))  # Fortran: updated in place (dger)
-        self.SX = _sym_times(s.S, XU[:, :p])
+        self.SX = _s_times(s, XU[:, :p])
         self.codes, self.types = codes.copy(), types
         self.rebuilds += 1
         s.stats.dense_solves += p
@@ -988,7 +995,7 @@ class PointModel:
         G = np.array([[C[1, 1], -C[0, 1]], [-C[1, 0], C[0, 0]]]) @ D / det
         cols = A[:, [p + 2 * k, p + 2 * k + 1]]  # a copy: the update below overwrites A
         X2 = A[:2 * m, :p] - cols[:2 * m] @ G[:, :p]
-        SX2 = _sym_times(s.S, X2)
+        SX2 = _s_times(s, X2)
         R = _scaled_residual(new, self.W, X2, SX2, rho)
         size = rho * (np.abs(SX2).max(initial=0.0) + np.abs(self.W).max(initial=0.0)) + np.abs(X2).max(initial=0.0)
         if not np.abs(R).max(initial=0.0) <= POINT_MODEL_RTOL * size:
@@ -1174,7 +1181,7 @@ class _Updater:
                     continue
                 raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for "
                                           f"{s._describe_codes(codes)}")
-            SL = _sym_times(s.S, L)
+            SL = _s_times(s, L)
             # iterative refinement against M(Z) itself; the updates are trusted while it contracts
             # (each correction well below the previous one), else the base is refactored here
             sizes, ok = [], True
@@ -1189,7 +1196,7 @@ class _Updater:
                     Eg_scale = size / max(sizes[-2], 1e-300)
                     break
                 L = L + Dl
-                SDl = _sym_times(s.S, Dl)
+                SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
                 if step and size > 0.25 * sizes[-2]:
