@@ -208,7 +208,8 @@ class CondensedSolver:
                 self.condensation = "forward"
         self.S = S if S is not None else self._schur()
         #: S^T, C-ordered: its rows are S's columns (S lam over few non-zero lam by rows); S itself
-        #: when S is exactly symmetric, else a copy (S by solves is not symmetrized, see :meth:`_schur`)
+        #: when S is exactly symmetric, else a copy, 2m x 2m more memory (S by solves is not
+        #: symmetrized, see :meth:`_schur`)
         self.St = self.S if np.array_equal(self.S, self.S.T) else np.ascontiguousarray(self.S.T)
         self.timings["condensation"] = time.perf_counter() - t0
 
