@@ -850,6 +850,13 @@ def _node_types(solver, codes):
     return closed, t_s, coef
 
 
+def _node_rows(m, nodes):
+    """The rows of M(Z) owned by the nodes, interleaved: j, m + j per node."""
+    out = np.empty(2 * nodes.size, dtype=np.intp)
+    out[0::2], out[1::2] = nodes, m + nodes
+    return out
+
+
 def _full_solve(solver, entry, B, rho):
     """M(Z)^-1 B (2m x c) in the full form with the S rows scaled by rho, from the LU ``entry`` of
     Z's reduced system (:meth:`CondensedSolver._factor_codes`): the unknowns fixed by unit rows
@@ -921,9 +928,7 @@ class PointModel:
         self.W = np.asarray(W, dtype=float)
         self.nodes = np.unique(np.asarray(nodes, dtype=np.intp))
         self.local = {int(j): k for k, j in enumerate(self.nodes)}
-        R = np.empty(2 * self.nodes.size, dtype=np.intp)
-        R[0::2], R[1::2] = self.nodes, self.m + self.nodes
-        self.R = R
+        self.R = _node_rows(self.m, self.nodes)
         self.updates = 0
         self.rebuilds = 0
         self._build(np.asarray(codes, dtype=np.int8))
@@ -1105,16 +1110,10 @@ class _Updater:
         for k, j in enumerate(new):
             self.pos[j] = q0 + k
         self.nodes.extend(new)
-        rows_all = self._rows(np.array(self.nodes))
+        rows_all = _node_rows(self.m, np.array(self.nodes))
         Zall = self.Zc[:, :2 * q1]
         self.SZ[2 * q0:2 * q1, :2 * q1] = S[rows_all[2 * q0:2 * q1]] @ Zall
         self.SZ[:2 * q0, 2 * q0:2 * q1] = S[rows_all[:2 * q0]] @ self.Zc[:, 2 * q0:2 * q1]
-
-    def _rows(self, nodes):
-        """The matrix rows of the nodes, interleaved: j, m + j per node."""
-        out = np.empty(2 * nodes.size, dtype=np.intp)
-        out[0::2], out[1::2] = nodes, self.m + nodes
-        return out
 
     def _vt(self, D, types, X, SX):
         """V^T X (2|D| x c, rows interleaved per node) with SX = S[rows of D] X."""
@@ -1143,7 +1142,7 @@ class _Updater:
         d = np.abs(lu.diagonal())
         if info != 0 or not d.max() < np.inf or d.min() <= 1e-14 * max(d.max(), 1e-300):
             return None
-        SD = self.s.S[self._rows(D)]
+        SD = self.s.S[_node_rows(self.m, D)]
 
         def solve(B):
             y = self._base_solve(B)

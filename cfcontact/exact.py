@@ -411,7 +411,7 @@ class _Context:
         self.visited: dict = {}  # digest of canonical codes -> (orientation, alpha) of its first entry
         self._lines: dict = {}  # (key, alpha) -> _Line, for the current transition point
         self.E = None  # perturbation loads (n x J)
-        self._point = None  # the degenerate point being crossed: [its first branch, vertex lines, model]
+        self._point = None  # the degenerate point being crossed: [its first branch, pivots so far, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
                       "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0, "point_updates": 0}
 

@@ -187,8 +187,7 @@ def test_updates_near_singular_branches_keep_the_path():
 def test_point_model_equals_fresh_solves():
     """The point model of a degenerate point (rank-2 updates, one node's state at a time, from a
     first branch) gives the multipliers of a fresh factorization on a long random walk through
-    the states of its nodes; a change of a node outside it is refused (None), a singular branch
-    is reported as a fresh solve reports it."""
+    the states of its nodes; a change of a node outside it is refused (None)."""
     from cfcontact.condensed import PointModel
 
     rng = np.random.default_rng(11)
