@@ -1015,6 +1015,108 @@ class PointModel:
         return True
 
 
+class PointTableau:
+    """The branches through one degenerate point, seen only at the point's own nodes: the
+    lexicographic walk's tableau, one rank-2 update per pivot.
+
+    At a degenerate point only the constraints of the nodes with an indicator vanishing there
+    can decide a pivot (every other constraint is positive at the point, and the pivots move
+    within an infinitesimal neighbourhood of it), and only those nodes change state.  So the
+    walk needs, per intermediate branch, the rates and perturbation responses of those nodes'
+    indicators only.  With R the two rows of each of the ``nodes`` in the full form M(Z) lam =
+    r(Z, W) (:class:`_Updater`; S rows scaled by rho), the tableau keeps
+
+        [[X_R, U_R], [S_R X, S_R U]],   X = M^-1 r(W),  U = M^-1 P_R   (4k x (p + 2k)),
+
+    and the nodes' indicators as three more rows per node (linear in those rows, less their
+    constant part rho w), which a change of one node's state updates by itself, exactly as
+    :class:`PointModel` updates its full columns (X' = X - U_q C^-1 (Delta X - dr), U' = U - U_q
+    C^-1 Delta U): O(k (p + 2k)) per pivot, independent of m.  There is no residual check (it would cost O(m^2)): the walk
+    forms its last branch afresh and compares (:func:`cfcontact.exact._tableau_walk`)."""
+
+    def __init__(self, solver, codes, W, nodes):
+        s = solver
+        m = s.m
+        self.rho = rho = s.system.rho
+        self.nodes = nodes = np.asarray(nodes, dtype=np.intp)
+        self.k = k = nodes.size
+        R = _node_rows(m, nodes)
+        W = np.asarray(W, dtype=float)
+        self.p = p = W.shape[1]
+        codes = np.asarray(codes, dtype=np.int8)
+        entry = s._factor_codes(b"point-tableau", codes)  # SingularSystemError when M(codes) is singular
+        s._lu.pop(b"point-tableau", None)
+        B = np.zeros((2 * m, p + 2 * k))
+        B[:, :p] = _scaled_rhs(_node_types(s, codes), W, rho)
+        B[R, p + np.arange(2 * k)] = 1.0
+        XU = _full_solve(s, entry, B, rho)
+        X, SX = XU[R], s.S[R] @ XU
+        self.F = F = s.F[nodes]
+        # the indicators' rows without their constant part (lam + rho (w - S lam) less rho w): the
+        # updates keep every linear function of the tableau's rows, so these are updated with it
+        H = np.empty((3 * k, XU.shape[1]))
+        Gn, Gt = X[0::2] - rho * SX[0::2], X[1::2] - rho * SX[1::2]
+        FX = F[:, None] * X[0::2]
+        H[0::3], H[1::3], H[2::3] = Gn, Gt - FX, Gt + FX
+        self.A = np.asfortranarray(np.vstack([X, SX, H]))
+        self.WR = W[R]
+        self.rhoW = rho * self.WR
+        self.offset = np.repeat(self.rhoW.reshape(k, 2, p), (1, 2), axis=1).reshape(3 * k, p)
+        self.no_tangent = np.asarray(s.no_tangent, dtype=bool)[nodes]
+        self.updates = 0
+        s.stats.dense_solves += p
+
+    def indicators(self) -> np.ndarray:
+        """(3k x p): the indicators a, bp, bm of each node in turn (row 3 j + i: indicator i of
+        node j) for the columns of W."""
+        return self.A[4 * self.k:, :self.p] + self.offset
+
+    def change(self, j, old, new) -> bool:
+        """Node j (local index) from state ``old`` to ``new``; False (tableau unchanged) when the
+        update is near singular.  Its two rows of M change: the normal row between lam_n = 0 and
+        rho S (open / closed), the tangential row between rho S (stick) and lam_t - coef lam_n = 0;
+        an unchanged row makes the update rank one."""
+        p, k, rho, A = self.p, self.k, self.rho, self.A
+        i = 2 * j
+        Yn, Yt = A[i], A[i + 1]
+        # the change of the normal row (minus that of its right-hand side), None if unchanged
+        D0 = None
+        if (old == _OPEN) != (new == _OPEN):
+            D0 = rho * A[2 * k + i] - Yn if new != _OPEN else Yn - rho * A[2 * k + i]
+            D0[:p] -= self.rhoW[i] if new != _OPEN else -self.rhoW[i]
+        tangent = not self.no_tangent[j]
+        s0, s1 = old == _STICK and tangent, new == _STICK and tangent
+        Fj = self.F[j]
+        c0, c1 = Fj * _SLIP_SIGN[old], Fj * _SLIP_SIGN[new]
+        D1 = None
+        if s0 != s1:
+            St = rho * A[2 * k + i + 1]
+            D1 = St - (Yt - c0 * Yn) if s1 else (Yt - c1 * Yn) - St
+            D1[:p] -= self.rhoW[i + 1] if s1 else -self.rhoW[i + 1]
+        elif not s0 and c1 != c0:
+            D1 = (c0 - c1) * Yn
+        c = p + i
+        if D0 is None and D1 is None:
+            return True
+        if D0 is None or D1 is None:  # rank one
+            r, D = (1, D1) if D0 is None else (0, D0)
+            piv = 1.0 + D[c + r]
+            if not abs(piv) > 1e-10 * max(abs(piv), 1.0):
+                return False
+            col = A[:, c + r].copy()
+            _dger(-1.0 / piv, col, D, a=A, overwrite_a=True)
+        else:
+            C00, C01, C10, C11 = 1.0 + D0[c], D0[c + 1], D1[c], 1.0 + D1[c + 1]
+            det = C00 * C11 - C01 * C10
+            if not abs(det) > 1e-10 * max(abs(C00), abs(C01), abs(C10), abs(C11), 1.0) ** 2:
+                return False
+            cols = A[:, c:c + 2].copy()  # the update below overwrites A
+            _dger(-1.0, cols[:, 0], (C11 * D0 - C01 * D1) / det, a=A, overwrite_a=True)
+            _dger(-1.0, cols[:, 1], (C00 * D1 - C10 * D0) / det, a=A, overwrite_a=True)
+        self.updates += 1
+        return True
+
+
 #: The exact method's branches are solved by updates of one kept factorization (:class:`_Updater`)
 #: from this many multipliers (2m) on; below, a fresh LU per branch is cheaper than the updates'
 #: bookkeeping.

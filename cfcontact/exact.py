@@ -88,6 +88,13 @@ POINT_MODEL_MIN_PIVOTS = 3
 #: ... on systems with at least this many multipliers (2m); below, a fresh solve per pivot costs
 #: no more than an update's bookkeeping (measured: equal at m = 48, the model 3x faster at m = 96).
 POINT_MODEL_MIN_SIZE = 160
+#: A degenerate point with at least this many nodes near a vanishing indicator is crossed on its
+#: tableau (:class:`cfcontact.condensed.PointTableau`, :func:`_tableau_walk`): a rank-2 update of a
+#: small array per pivot instead of a solve; at fewer nodes a solve per pivot costs no more.
+TABLEAU_MIN_NODES = 8
+#: The leaving branch formed afresh must have the rates that the tableau gave it within this share
+#: of their size (else the walk starts over with a solve per pivot).
+TABLEAU_RTOL = 1e-8
 #: Units in the last place of alpha within which two roots count as one transition point (alpha
 #: is rounded: a steep constraint's value there carries its rate times that rounding).
 ALPHA_ULPS = 4.0
@@ -413,7 +420,8 @@ class _Context:
         self.E = None  # perturbation loads (n x J)
         self._point = None  # the degenerate point being crossed: [its first branch, pivots so far, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
-                      "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0, "point_updates": 0}
+                      "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0, "point_updates": 0,
+                      "tableau_updates": 0}
 
     def line(self, codes, alpha) -> _Line:
         codes = np.asarray(codes, dtype=np.int8)
@@ -663,6 +671,10 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
                               {"pivots": pivots})
         visited.add((nxt.key, d))
         ctx.stats["pivots"] += 1
+        if nxt is first and not repair and type(ctx.data) is _CondensedData:
+            out = _tableau_walk(ctx, first, d, e, sign, a_star, pivots, visited)
+            if out is not None:
+                return out
         # constraints of nxt that vanish at a_star (its reference point) and do not grow in d
         zero = np.abs(nxt.c) <= nxt.tol_v
         if e >= 0:
@@ -700,6 +712,141 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
             k = int(D[_lexmin_with_more_columns(ctx, rows, D.size)])
         cur = nxt
     raise _Unresolved("degenerate", f"more than {max(64, 8 * m)} pivots at one point", {"pivots": pivots})
+
+
+def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star: float, pivots: list, visited: set):
+    """The rest of :func:`_resolve`'s walk from its first pivot (the branch ``first``, entered in
+    direction d through its constraint e), on the point's :class:`~cfcontact.condensed.PointTableau`.
+
+    The same rule and the same decisions as the loop of :func:`_resolve`, with the rates and
+    perturbation responses of the point's nodes from the tableau's rank-2 updates instead of a
+    solve per intermediate branch (and nothing of the other nodes, which the walk never needs).
+    Returns (line, d, pivots, e) as :func:`_resolve`, the leaving branch formed afresh and
+    checked: none of its constraints that vanish at the point decreases in d, and its rates at the
+    point's nodes are the tableau's.  Returns None where the loop of :func:`_resolve` must go on
+    instead (its case is not one the walk handles: a constraint constant along the branch, a tie
+    that needs more perturbation columns, a near-singular update, a failed check); ``pivots`` and
+    ``visited`` are then as they were."""
+    from cfcontact.condensed import PointTableau
+
+    m = ctx.m
+    g = first.g
+    tv = np.broadcast_to(first.ind_tv, (3 * m,))
+    near = np.abs(g) <= 4.0 * tv + 256.0 * _alpha_rounding(a_star, first.dg)
+    nodes = np.unique(np.flatnonzero(near) % m)
+    if nodes.size < TABLEAU_MIN_NODES:
+        return None
+    J = PERTURBATION_COLUMNS
+    ctx.perturbation_rows(first, J)  # the perturbation loads' data
+    try:
+        tab = PointTableau(ctx.solver, first.codes, ctx.data._rate_columns(J), nodes)
+    except SingularSystemError:
+        return None
+    n_piv, added, n_stats = len(pivots), [], ctx.stats["pivots"]
+
+    def give_up():
+        del pivots[n_piv:]
+        visited.difference_update(added)
+        ctx.stats["pivots"] = n_stats
+        return None
+
+    kind = ctx.F0_index[nodes]
+    codes = first.codes.copy()
+    loc = codes[nodes].astype(np.intp)  # the nodes' states
+    # the nodes' indicators, node by node (flat index 3 j + i: indicator i of node j): the point's
+    # values (the same on every branch through it) and what counts as zero
+    flat = (np.arange(3)[None, :] * m + nodes[:, None]).ravel()
+    absg = np.abs(g[flat])
+    tvf = tv[flat]
+    tsf = np.broadcast_to(first.ind_ts, (3 * m,))[flat]
+    spacing = ALPHA_ULPS * np.spacing(abs(float(a_star)))
+    sg = _CONS_SIGN[loc, kind].ravel()  # the constraints of the nodes' states, 0: none
+    lidx = {int(i): j for j, i in enumerate(nodes)}
+    je = lidx.get(int(first.cnode[e]))
+    if je is None:
+        return give_up()
+    fe = 3 * je + int(first.cidx[e]) // m  # the constraint the branch was entered by
+    ind = tab.indicators()
+    delta = -(sign * sg[fe] * ind[fe, 1:]) / (sg[fe] * ind[fe, 0])  # the vertex's lexicographic offset
+    for _ in range(max(64, 8 * m)):
+        dc = sg * ind[:, 0]
+        rate = d * dc
+        cand = (absg <= tvf + spacing * np.abs(dc)) & (rate <= tsf) & (sg != 0.0)
+        cand[fe] = False
+        D = cand.nonzero()[0]
+        if not D.size:
+            break
+        rD = rate[D]
+        if (rD >= -tsf[D]).any():
+            return give_up()  # a constant constraint: the perturbation decides (the loop of _resolve)
+        if D.size == 1:
+            f = int(D[0])
+        else:
+            # the lexicographic offsets of the roots, (dc delta + P) / |dc| (first column first)
+            dD, sD = dc[D], sign * sg[D]
+            col = (dD * delta[0] + sD * ind[D, 1]) / -rD
+            i = int(col.argmin())
+            if (col <= col[i] + 1e-9 * np.abs(col).max()).sum() > 1:  # a tie in the first column
+                rows = (dD[:, None] * delta + sD[:, None] * ind[D, 1:]) / np.abs(dD)[:, None]
+                i = _lex_argmin(rows)
+                if i is None:
+                    return give_up()  # tied in the first perturbation columns: more of them
+            f = int(D[i])
+        j, c = divmod(f, 3)
+        node, old = int(nodes[j]), int(loc[j])
+        new = int(_PIVOT[old, kind[j], c])
+        if new == -2:
+            return give_up()
+        if new == -1:  # an open node closes: it slips in the direction of its T u
+            fb = 3 * j + _BP
+            b = float(g[m + node])
+            if abs(b) > tvf[fb]:
+                new = SLIP_P if b > 0 else SLIP_M
+            else:
+                sgn = _lex_sign(ind[fb, 0] * delta + sign * ind[fb, 1:])
+                if not sgn:
+                    return give_up()
+                new = SLIP_P if sgn > 0 else SLIP_M
+        if not tab.change(j, old, new):
+            return give_up()
+        loc[j] = new
+        codes[node] = new
+        sg[3 * j:3 * j + 3] = _CONS_SIGN[new, kind[j]]
+        ind = tab.indicators()
+        de = sg[f] * ind[f, 0]
+        if not sg[f] or not abs(de) > tsf[f]:
+            return give_up()
+        d = 1 if de > 0 else -1
+        delta = -(sign * sg[f] * ind[f, 1:]) / de
+        fe = f
+        pivots.append({"node": node, "set": SET_NAMES[c], "from": STATE_NAMES[old], "to": STATE_NAMES[new],
+                       "orientation": d})
+        key = (b"exact:" + codes.tobytes(), d)
+        if key in visited:
+            return give_up()  # the loop of _resolve reports it
+        visited.add(key)
+        added.append(key)
+        ctx.stats["pivots"] += 1
+        ctx.stats["tableau_updates"] += 1
+    else:
+        return give_up()
+    # the leaving branch afresh: it must leave the point (no vanishing constraint decreasing in d)
+    # with the rates the tableau gave it
+    try:
+        out = ctx.line(codes, a_star)
+    except SingularSystemError:
+        return give_up()
+    je, ie = divmod(fe, 3)
+    e_out = out.position(int(nodes[je]), ie)
+    zero = np.abs(out.c) <= out.tol_v
+    if e_out >= 0:
+        zero[e_out] = False
+    rates = out.dg[flat]
+    scale = np.abs(rates).max(initial=0.0) + 1e-300
+    if (e_out < 0 or (zero & (d * out.dc < -out.tol_s)).any()
+            or np.abs(rates - ind[:, 0]).max(initial=0.0) > TABLEAU_RTOL * scale):
+        return give_up()
+    return out, d, pivots, e_out
 
 
 def _full_exit(ctx, ln: _Line, alpha) -> _Line:

@@ -216,6 +216,50 @@ def test_point_model_equals_fresh_solves():
     assert model.move_to(outside) is None
 
 
+def test_point_tableau_equals_fresh_solves():
+    """The tableau of a degenerate point (its nodes' indicators for the columns of W, rank-one
+    and rank-two updates per state change) gives the indicators of a fresh factorization at
+    those nodes on a long random walk through their states, nodes with F = 0 and without a
+    tangential unknown included."""
+    from cfcontact.condensed import PointTableau
+
+    rng = np.random.default_rng(12)
+    m = 40
+    friction = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0.2, 3.0, m))
+    nt = rng.random(m) < 0.1  # nodes without a tangential unknown (their rows of T vanish)
+    n = 2 * m + 10
+    A = rng.standard_normal((n, n))
+    N, T = np.zeros((m, n)), np.zeros((m, n))
+    N[np.arange(m), 2 * np.arange(m) + 1] = 1.0
+    T[np.arange(m), 2 * np.arange(m)] = np.where(nt, 0.0, 1.0)
+    f1, f2 = rng.standard_normal(n), rng.standard_normal(n)
+    system = ContactSystem.from_arrays(A @ A.T / n + np.eye(n), N, T, f1, f2, friction)
+    assert np.array_equal(system.no_tangent, nt)
+    solver = CondensedSolver(system, SolverOptions(updates=False))
+    W = np.column_stack([solver.load_data_many(list(system.loads_numpy())), rng.standard_normal((2 * m, 2))])
+    F0 = system.friction_vector == 0.0
+    nodes = np.sort(rng.choice(m, size=15, replace=False))
+    codes = np.where(F0, SLIP_P, STICK).astype(np.int8)
+    tab = PointTableau(solver, codes, W, nodes)
+    ranks = set()
+    for step in range(300):
+        j = int(rng.integers(nodes.size))
+        i = int(nodes[j])
+        old = int(codes[i])
+        choices = (OPEN, STICK) if nt[i] else (OPEN, SLIP_P) if F0[i] else (OPEN, STICK, SLIP_P, SLIP_M)
+        new = int(rng.choice([c for c in choices if c != old]))
+        before = tab.A.copy()
+        assert tab.change(j, old, new)
+        ranks.add(int(np.linalg.matrix_rank(tab.A - before, tol=1e-12 * np.abs(before).max())))
+        codes = codes.copy()
+        codes[i] = new
+        _, g_ref = fresh(solver, codes, W)
+        got = tab.indicators()  # 3k x p, node by node
+        ref = g_ref.reshape(3, m, -1)[:, nodes].transpose(1, 0, 2).reshape(3 * nodes.size, -1)
+        assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max(), step
+    assert tab.updates == 300 and ranks == {1, 2}
+
+
 @pytest.mark.parametrize("friction, updates", [(0.5, True), (2.0, False),
                                                pytest.param(2.0, True, marks=pytest.mark.slow)])
 def test_paths_with_point_model_equal_paths_without(friction, updates, monkeypatch):
@@ -236,3 +280,33 @@ def test_paths_with_point_model_equal_paths_without(friction, updates, monkeypat
     _same_paths(paths[True], paths[False])
     assert [t.pivots for t in paths[True].transitions] == [t.pivots for t in paths[False].transitions]
     assert paths[True].stats["degenerate_points"] > 10
+
+
+@pytest.mark.parametrize("model", ["chain", "closing", "fallback"])
+def test_paths_with_point_tableau_equal_paths_without(model, monkeypatch):
+    """Degenerate points of many nodes are crossed on the point's tableau (one rank-one or
+    rank-two update of the nodes' rows per pivot): sixteen identical chains (every transition a
+    point of 16 nodes), and two FEM blocks whose whole interface (24 nodes) closes at one alpha.
+    The path is the same as with a solve per pivot, pivot by pivot.  "fallback": the check of
+    every walk's leaving branch is made to fail, so each point is crossed again by a solve per
+    pivot from where the walk began: still the same path, and the pivot counts are not doubled."""
+    import cfcontact.exact as exact
+
+    if model == "fallback":
+        monkeypatch.setattr(exact, "TABLEAU_RTOL", -1.0)
+    if model in ("chain", "fallback"):
+        system = _chain(4, 1.0, 5, 16)
+    else:
+        from cfcontact.bench_stress import _closing
+
+        system = _closing(24, 0.3)
+    paths = {}
+    for use in (True, False):
+        monkeypatch.setattr(exact, "TABLEAU_MIN_NODES", 8 if use else 10 ** 9)
+        paths[use] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system))
+    a, b = paths[True], paths[False]
+    assert a.stats["tableau_updates"] > 50 and b.stats["tableau_updates"] == 0
+    assert a.stats["max_vanishing"] >= 16
+    _same_paths(a, b)
+    assert [t.pivots for t in a.transitions] == [t.pivots for t in b.transitions]
+    assert a.stats["pivots"] == b.stats["pivots"]
