@@ -145,7 +145,7 @@ def worker(spec) -> dict:
                                     monitor=lambda progress: time.perf_counter() - t0 > limit)
     except cfcontact.StartInterrupted as exc:  # the time limit ended the homotopy start: no path point
         path = None
-        res.update(status="time limit (start)", transitions=0, start="homotopy",
+        res.update(status="time limit (start)", transitions=0, start=exc.progress.stage,
                    homotopy_transitions=exc.progress.transitions, homotopy_t=exc.progress.t)
     t_path = time.perf_counter() - t0
     res.update(path_time=t_path, rss_after_path_gib=peak_rss_gib())
@@ -329,7 +329,7 @@ def _random_loads(build, friction, paths, seed0, log):
         except cfcontact.CfcontactError as exc:
             rec = {"status": "start failure", "error": str(exc)[:200], "transitions": 0}
         rec["time"] = time.perf_counter() - t0
-        if rec.get("start") == "homotopy":
+        if rec.get("start") in ("frictionless", "homotopy"):
             # the same path from its start branch's sets (the start given): what the homotopy
             # start adds to this path, apart from the path's own length
             again = base.with_loads(g1, g2)
@@ -352,7 +352,8 @@ def _summary(recs) -> dict:
     for r in recs:
         starts.setdefault(r.get("start") or "-", []).append(r["time"])
     ssnm_t = np.median(starts["ssnm"]) if starts.get("ssnm") else float("nan")
-    hom = starts.get("homotopy", [])
+    # the paths whose SSNM start failed: started by either homotopy of the exact method
+    hom = starts.get("frictionless", []) + starts.get("homotopy", [])
     own = [r["time"] / r["time_given_start"] for r in recs if r.get("time_given_start")]
     return {"runs": len(recs), "status": st, "transitions_total": int(sum(r["transitions"] for r in recs)),
             "transitions_max": int(max(r["transitions"] for r in recs)),

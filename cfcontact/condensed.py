@@ -725,6 +725,21 @@ class CondensedSolver:
         lam, Z, k, converged = self._ssnm_lam(self.load_data(f), Z0, np.zeros(2 * m), tol, max_iter)
         return Z if converged else None
 
+    def frictionless_solution(self, w: np.ndarray, tol: float, max_iter: int) -> Optional[tuple]:
+        """(lam, sets) of the frictionless problem (every F = 0) for the data w = B K^-1 f, by SSNM
+        in the multipliers from every node closed; None when it does not converge in
+        ``max_iter`` iterations.  The frictionless problem has exactly one solution (S is
+        positive definite), the start of the exact method's frictionless homotopy."""
+        m = self.m
+        saved = self.F, self._F0, self._lu
+        try:
+            self.F, self._F0, self._lu = np.zeros(m), np.ones(m, dtype=bool), OrderedDict()
+            Z0 = InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
+            lam, Z, _, converged = self._ssnm_lam(w, Z0, np.zeros(2 * m), tol, max_iter)
+        finally:
+            self.F, self._F0, self._lu = saved
+        return (lam, Z) if converged else None
+
     def _ssnm_lam(self, w, Z, lam_prev, tol, max_iter):
         """SSNM iterations in the multipliers from the sets Z and multipliers lam_prev:
         (lam, sets of lam's iteration, iterations, converged); lam is the last iterate (the

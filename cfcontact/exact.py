@@ -1289,7 +1289,7 @@ def _ssnm_start(ctx: _Context, alpha, y0):
         return None
 
 
-def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
+def _homotopy_start(ctx: _Context, alpha, monitor=None, n0=0) -> tuple:
     """Sets of a solution at alpha reached by the exact method from data whose only solution is
     every node open (condensed backend only), and the number of transitions it took.
 
@@ -1300,26 +1300,70 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
     t <= 0 and, its branches being bounded and entered once each, it reaches t = 1.
 
     ``monitor``: called with a :class:`~cfcontact.StartProgress` after every transition
-    of the homotopy; a truthy answer raises :class:`~cfcontact.errors.StartInterrupted`."""
+    of the homotopy (counting from ``n0``: the transitions of an earlier attempt); a truthy answer
+    raises :class:`~cfcontact.errors.StartInterrupted`."""
     data, m = ctx.data, ctx.m
     w = (1.0 - alpha) * data.w1 + alpha * data.w2
     Fmax = float(ctx.Fv.max(initial=0.0))
     scale = max(np.abs(w).max(initial=0.0), 1e-300)
     c = 1.1 * max(0.0, -float(w[:m].min(initial=0.0)), Fmax * float(np.abs(w[m:]).max(initial=0.0))) + scale
     w_open = np.concatenate([np.full(m, -c), w[m:]])
+    return _homotopy(ctx, alpha, w_open, np.zeros(m, dtype=np.int8), "homotopy", monitor, n0)
+
+
+def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
+    """Sets of a solution at alpha reached by the exact method from the frictionless solution, and
+    the number of transitions it took; (None, transitions) when this start cannot be had: SSNM
+    does not converge on the frictionless problem, or the homotopy turns back to t = 0.
+
+    The frictionless problem (every F = 0) has one solution lam_f (S is positive definite), which
+    SSNM finds where friction makes it wander.  With Z_f its closed nodes, the data w_0 = w(alpha)
+    with the tangential data of Z_f replaced by (S lam_f)_t -- the tangential gaps at which every
+    closed node sticks with lam_t = 0 -- have lam_f as a solution at every F (a sticking node
+    needs |lam_t| = 0 <= F lam_n).  The homotopy (1 - t) w_0 + t w(alpha) moves only those
+    tangential data; where friction holds most nodes it takes a few transitions (the all-open
+    homotopy of :func:`_homotopy_start`, which always ends, can take thousands).  Unlike that one
+    it may turn back: the data at t < 0 can have several solutions."""
+    m, solver = ctx.m, ctx.solver
+    if not ctx.condensed or not (ctx.Fv > 0.0).any() or not hasattr(solver, "frictionless_solution"):
+        return None, 0
+    w = (1.0 - alpha) * ctx.data.w1 + alpha * ctx.data.w2
+    sol = solver.frictionless_solution(w, ctx.opts.tol, START_SSNM_ITERATIONS)
+    if sol is None:
+        return None, 0
+    lam, Z = sol
+    closed = (~Z.nu).nonzero()[0]
+    w0 = w.copy()
+    w0[m + closed] = solver.S[m + closed] @ lam
+    codes = _canon(ctx.system, sets_from_codes(np.where(~Z.nu, STICK, OPEN)))
+    return _homotopy(ctx, alpha, w0, codes, "frictionless", monitor)
+
+
+def _homotopy(ctx: _Context, alpha, w0, codes, stage, monitor=None, n0=0) -> tuple:
+    """(sets, transitions) of the exact method's walk in t from the solution of state ``codes`` of
+    the data w0 at t = 0 to the data w(alpha) at t = 1; sets = None when the walk does not reach
+    t = 1 (it turns back to t = 0, or ends otherwise), or the state is no solution at t = 0.
+    ``stage``: the name the monitor sees, with the transitions counted from ``n0`` (see
+    :func:`_homotopy_start`)."""
+    data = ctx.data
+    w = (1.0 - alpha) * data.w1 + alpha * data.w2
     # the path's own transition cap does not bound its start (the homotopy ends: each branch once)
     hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None,
                                        max_transitions=max(int(ctx.opts.max_transitions), HOMOTOPY_MAX_TRANSITIONS))
-    hctx = _Context(ctx.system, ctx.solver, hopts, 0.0, 1.0, ctx.rtol, W=np.column_stack([w_open, w]))
+    hctx = _Context(ctx.system, ctx.solver, hopts, 0.0, 1.0, ctx.rtol, W=np.column_stack([w0, w]))
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
-    walk = _Walk.begin(hctx, path, hctx.line(np.zeros(m, dtype=np.int8), 0.0), 1, 0.0)
+    ln = hctx.line(codes, 0.0)
+    if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+        return None, 0
+    ln, s = _leave_start(hctx, path, codes, 0.0, 1)
+    walk = _Walk.begin(hctx, path, ln, s, 0.0)
     walk.parameter, walk.log_level = "homotopy t", logging.DEBUG
     t0 = time.perf_counter()
     seen = []
 
     def watch(point):
-        seen[:] = [StartProgress("homotopy", len(path.transitions), float(point.alpha), time.perf_counter() - t0)]
+        seen[:] = [StartProgress(stage, n0 + len(path.transitions), float(point.alpha), time.perf_counter() - t0)]
         return monitor(seen[0])
 
     status = walk.run(watch if monitor is not None else None)
@@ -1327,7 +1371,7 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
         prog = seen[0]
         raise StartInterrupted(f"the start at alpha={alpha:g} was abandoned by the monitor after {prog.transitions} "
                                f"transition(s) of its homotopy (t = {prog.t:.6g} of 1, {prog.elapsed:.3g} s)", prog)
-    for k in ("degenerate_points", "pivots", "perturbation_solves", "point_updates"):
+    for k in ("degenerate_points", "pivots", "perturbation_solves", "point_updates", "tableau_updates"):
         ctx.stats[k] += hctx.stats[k]
     ctx.E, data.WE = hctx.E, hctx.data.WE
     if status != "completed" or walk.s != 1:
@@ -1337,8 +1381,8 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None) -> tuple:
 
 def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
     """(line, orientation, how) of the start: the branch of the start solution's sets leaving alpha
-    in direction s (see :func:`_leave_start`); how = "start_sets", "ssnm", "homotopy" or
-    "enumeration"."""
+    in direction s (see :func:`_leave_start`); how = "start_sets", "ssnm", "frictionless",
+    "homotopy" or "enumeration"."""
     system = ctx.system
     if start_sets is not None:
         if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
@@ -1352,16 +1396,28 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
     else:
         start_sets, how = _ssnm_start(ctx, alpha, y0), "ssnm"
         if start_sets is None and ctx.condensed:
-            start_sets, transitions = _homotopy_start(ctx, alpha, monitor)
-            how = "homotopy"
+            start_sets, how, transitions = _reach_start(ctx, alpha, monitor)
             ctx.stats["homotopy_transitions"] = transitions
             log.info("SSNM did not converge at alpha_start=%g; the start was reached by the exact method from "
-                     "the all-open state (%d transitions)", alpha, transitions)
+                     "the %s state (%d transitions)", alpha,
+                     "frictionless" if how == "frictionless" else "all-open", transitions)
         if start_sets is None:
             start_sets, how = _enumeration_start(system, alpha, path), "enumeration"
         codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
+
+
+def _reach_start(ctx: _Context, alpha, monitor=None) -> tuple:
+    """(sets, how, transitions) of a start at alpha reached by the exact method where SSNM did not
+    converge: from the frictionless solution (how = "frictionless"), else from the all-open state
+    (how = "homotopy", which always ends); transitions counts both homotopies' (sets None only
+    when the all-open one did not reach t = 1 either, a numerical failure)."""
+    sets, n = _frictionless_start(ctx, alpha, monitor)
+    if sets is not None:
+        return sets, "frictionless", n
+    sets, more = _homotopy_start(ctx, alpha, monitor, n)
+    return sets, "homotopy", n + more
 
 
 def _leave_start(ctx: _Context, path, codes, alpha, s):
@@ -1441,10 +1497,13 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     "stuck" (a point that could not be crossed, see events), "closed_loop" (the path came back to
     its first branch: a closed curve of solutions), "cycling" (a branch entered twice: a numerical
     inconsistency, see events), "max_transitions" or "stopped by callback".  ``path.stats`` adds
-    ``start`` (how the start was found: "ssnm", "homotopy", "enumeration", "start_sets"),
-    ``degenerate_points``, ``pivots``, ``max_vanishing``, ``branch_points``,
-    ``homotopy_transitions`` and ``point_updates`` (intermediate branches of degenerate points
-    solved by the point's rank-2 updates, :class:`~cfcontact.condensed.PointModel`).
+    ``start`` (how the start was found: "ssnm"; where SSNM does not converge, the exact method's
+    homotopy from the frictionless solution, "frictionless", or from the all-open state,
+    "homotopy"; "enumeration", "start_sets"), ``degenerate_points``, ``pivots``,
+    ``max_vanishing``, ``branch_points``, ``homotopy_transitions`` (of the start's homotopies),
+    ``point_updates`` (intermediate branches of degenerate points solved by the point's rank-2
+    updates, :class:`~cfcontact.condensed.PointModel`) and ``tableau_updates`` (pivots made on a
+    point's own tableau, :class:`~cfcontact.condensed.PointTableau`).
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
     if tree:

@@ -47,7 +47,7 @@ from cfcontact.exact import (
     STICK,
     _Context,
     _digest,
-    _homotopy_start,
+    _reach_start,
     _resolve,
     _Unresolved,
     canonical_codes,
@@ -341,8 +341,8 @@ def _check_request(system, alpha, F_start, F_end, options, method, solver):
 
 def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple:
     """(codes, how): the state codes of a solution at the load f(alpha) with friction F pattern:
-    SSNM in the multipliers, else the exact method's homotopy from the all-open state, else
-    enumeration (small problems).  At F = 0 a closed node with friction slips in the direction of
+    SSNM in the multipliers, else the exact method's homotopy from the frictionless solution or
+    from the all-open state, else enumeration (small problems).  At F = 0 a closed node with friction slips in the direction of
     its T u (stick when T u = 0): the states of F = 0+.  ``monitor``: as for
     :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
     sysF = friction_system(system, F, pattern)
@@ -351,8 +351,7 @@ def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple
     sets, how = view.ssnm_sets(f, opts.tol, opts.max_iter), "ssnm"
     if sets is None:
         ctx = _Context(sysF, view, opts, alpha, alpha + 1.0, float(opts.tie_rtol))
-        sets, _ = _homotopy_start(ctx, alpha, monitor)
-        how = "homotopy"
+        sets, how, _ = _reach_start(ctx, alpha, monitor)
     if sets is None and system.m <= 8:
         from cfcontact.enumerate import enumerate_solutions
 

@@ -13,8 +13,8 @@ whose answer decides what happens next:
 :class:`cfcontact.seed.SeedStepper` and :class:`cfcontact.exact.ExactStepper` advance one
 accepted point at a time (a step, a transition) and their resume state is always current.
 
-Before the first point there may be a long start (the exact method's homotopy from the all-open
-state when SSNM does not converge at alpha_start): a ``monitor`` given to the stepper sees its
+Before the first point there may be a long start (the exact method's homotopies from the
+frictionless solution or the all-open state when SSNM does not converge at alpha_start): a ``monitor`` given to the stepper sees its
 progress (:class:`StartProgress`) and can abandon it.
 """
 
@@ -30,9 +30,10 @@ from cfcontact.errors import InputError
 @dataclass(frozen=True)
 class StartProgress:
     """What a run's ``monitor`` sees while the start is being reached, before the path has a point:
-    ``stage`` ("homotopy": the exact method's start from the all-open state), the transitions
-    traced so far, the homotopy parameter ``t`` (0 to 1; the start is reached at 1) and the
-    seconds since the start began.  The monitor's truthy answer abandons the run
+    ``stage`` (the exact method's start: "frictionless", its homotopy from the frictionless
+    solution, or "homotopy", from the all-open state, which follows when the first turns back),
+    the transitions traced so far (of both), the homotopy parameter ``t`` (0 to 1; the start is
+    reached at 1) and the seconds since the stage began.  The monitor's truthy answer abandons the run
     (:class:`~cfcontact.errors.StartInterrupted`)."""
 
     stage: str

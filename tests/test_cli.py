@@ -754,8 +754,9 @@ render_panel = false
 
 def test_time_limit_during_a_homotopy_start(tmp_path, capsys):
     """SSNM does not converge at alpha_start on this case (F = 30); the start is reached by the
-    exact method's homotopy, which a time limit (and Ctrl-C) stops too: exit 3, nothing left
-    behind (the path had no point), and the next run starts over without --force."""
+    exact method's homotopy (from the frictionless solution), which a time limit (and Ctrl-C)
+    stops too: exit 3, nothing left behind (the path had no point), and the next run starts over
+    without --force."""
     case = _write(tmp_path, HOMOTOPY)
     assert cli.main(["run", case, "--time-limit", "1e-6"]) == 3
     assert "time limit of 1e-06 s reached while reaching the start" in capsys.readouterr().out
@@ -763,5 +764,5 @@ def test_time_limit_during_a_homotopy_start(tmp_path, capsys):
     assert cli.main(["run", case, "-q"]) == 0
     summary = json.loads((tmp_path / "case_out" / "summary.json").read_text())
     path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
-    assert path.stats["start"] == "homotopy" and path.stats["homotopy_transitions"] > 10
+    assert path.stats["start"] == "frictionless"  # SSNM did not converge: the homotopy reached it
     assert summary["status"] == "completed"

@@ -555,34 +555,59 @@ def test_trace_tree_finds_every_solution_of_two_identical_nodes():
 
 
 @pytest.mark.slow
+def test_frictionless_start_is_a_solution_and_starts_the_same_path():
+    """Where SSNM from 0 does not converge (a lumped model at F = 30), the start is reached from
+    the frictionless solution by a homotopy in the tangential data (7 transitions): the start
+    point verifies, it is a point of the path traced from its sets, and a path at F = 0.3 on the
+    same model (SSNM converges) never tries it."""
+    system = random_system(6, 213, friction=30.0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
+    assert path.status == "completed"
+    assert path.stats["start"] == "frictionless" and path.stats["homotopy_transitions"] >= 3
+    a, y = next(iter(path.iter_points(indices=[0])))
+    assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-10
+    first = path.branches[0]
+    again = cfcontact.trace_exact(system, 0.0, 1.0, start_sets=first.sets, orientation=first.orientation,
+                                  solver=cfcontact.CondensedSolver(system))
+    assert [(t.node, t.set, t.kind) for t in again.transitions] == [(t.node, t.set, t.kind) for t in path.transitions]
+    assert cfcontact.trace_path(system.with_friction(0.3), 0.0, 1.0, method="exact",
+                                backend="condensed").stats["start"] == "ssnm"
+
+
 def test_homotopy_start_is_not_bounded_by_the_path_cap():
     """On a long strip (m = 500, F = 0.3) SSNM from 0 does not converge within the start's 25
-    iterations; the exact method reaches the start by its homotopy from the all-open state (532
-    transitions), whatever the path's own max_transitions.  The start point verifies."""
+    iterations; the exact method reaches the start by its homotopy from the frictionless solution
+    (390 transitions; from the all-open state it took 532), whatever the path's own
+    max_transitions.  The start point verifies."""
     from cfcontact.bench_stress import strip
 
     system = strip(500, 0.3, seed=0)
     path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", max_transitions=5)
     assert path.status == "max_transitions" and len(path.transitions) == 5
-    assert path.stats["start"] == "homotopy" and path.stats["homotopy_transitions"] > 5
+    assert path.stats["start"] == "frictionless" and path.stats["homotopy_transitions"] > 5
     a, y = next(iter(path.iter_points(indices=[0])))
     assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-8
 
 
 def test_monitor_sees_and_can_abandon_a_homotopy_start():
-    """A lumped model whose SSNM start does not converge at F = 30: the monitor sees every
-    transition of the homotopy start (t from 0 to 1, counts rising); a monitor that never answers
-    True leaves the path as it is without one; a truthy answer abandons the run with
-    StartInterrupted carrying the last progress.  A path whose SSNM start converges never calls
-    the monitor."""
-    system = random_system(6, 143, friction=30.0)
+    """A lumped model whose SSNM start does not converge at F = 30, and whose homotopy from the
+    frictionless solution turns back to t = 0 after one transition: the start is reached from
+    the all-open state.  The monitor sees every transition of both homotopies (each from t = 0,
+    counts rising over both); a monitor that never answers True leaves the path as it is without
+    one; a truthy answer abandons the run with StartInterrupted carrying the last progress.  A
+    path whose SSNM start converges never calls the monitor."""
+    system = random_system(6, 103, friction=30.0)
     ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
     assert ref.stats["start"] == "homotopy" and ref.stats["homotopy_transitions"] >= 3
     seen = []
     path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed",
                                 monitor=lambda p: seen.append(p))
     assert [t.alpha for t in path.transitions] == [t.alpha for t in ref.transitions]
-    assert all(isinstance(p, cfcontact.StartProgress) and p.stage == "homotopy" for p in seen)
+    assert all(isinstance(p, cfcontact.StartProgress) for p in seen)
+    stages = [p.stage for p in seen]
+    k = stages.index("homotopy")
+    assert k > 1 and set(stages[:k]) == {"frictionless"} and set(stages[k:]) == {"homotopy"}
+    assert seen[k - 1].t == 0.0 and seen[k].t == 0.0  # the first turned back; the second starts
     assert [p.transitions for p in seen] == sorted(p.transitions for p in seen)
     assert seen[0].t == 0.0 and seen[-1].t == 1.0 and seen[-1].transitions == ref.stats["homotopy_transitions"]
     with pytest.raises(cfcontact.StartInterrupted, match=r"after 2 transition\(s\) of its homotopy") as info:
