@@ -1307,15 +1307,16 @@ class _Updater:
                 Dl = solve(self._residual(types, W, L, SL))
                 size = np.abs(Dl).max(initial=0.0)
                 sizes.append(size)
-                if step and size <= 1e-3 * sizes[0]:
-                    # converged: the last correction only measures the error (no product with S
-                    # for it; its indicators are the previous correction's, scaled)
-                    Eg_scale = size / max(sizes[-2], 1e-300)
-                    break
                 L = L + Dl
                 SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
+                if step and size <= 1e-3 * sizes[0]:
+                    # converged (the correction is applied: after a poor first solve -- 5 % off on a
+                    # strip at F = 30 -- it can still be 3e-8 of lam); the next one would be about
+                    # this much smaller than it: the error estimate
+                    Eg_scale = size / max(sizes[-2], 1e-300)
+                    break
                 if step and size > 0.25 * sizes[-2]:
                     ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
                     break
