@@ -45,6 +45,7 @@ Run:  cfcontact bench [--quick] [--sizes 1e4,1.2e5,1e6] [--skip-large] [--output
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
 import math
@@ -459,6 +460,27 @@ def add_arguments(ap):
     return ap
 
 
+@contextlib.contextmanager
+def _blas_threads(machine: dict):
+    """The measurements' convention (docs/bench.md): one BLAS thread, in this process and in the
+    worker processes it starts, unless OPENBLAS_NUM_THREADS says otherwise (then that); recorded
+    in ``machine``.  Multi-threaded BLAS on the small dense systems of a path costs more than it
+    gains, and much more when the machine is busy."""
+    chosen = os.environ.get("OPENBLAS_NUM_THREADS")
+    machine["openblas_num_threads"] = chosen if chosen is not None else "1 (the benchmark's default)"
+    if chosen is not None:
+        yield
+        return
+    from cfcontact.enumerate import single_threaded_blas
+
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # the workers: fresh processes read it when they start
+    try:
+        with single_threaded_blas():
+            yield
+    finally:
+        os.environ.pop("OPENBLAS_NUM_THREADS", None)
+
+
 def run(args, argv_text="") -> int:
     """Run the benchmark with parsed options; prints the tables, writes <output>/bench.json."""
     part = str(args.part).upper()
@@ -499,63 +521,64 @@ def run(args, argv_text="") -> int:
                        "frictions": list(dm.DEMO_FRICTIONS), "alpha": list(dm.DEMO_ALPHA)},
               "blocks": {"model": BLOCKS_MODEL, "f1": BLOCKS_F1, "f2": BLOCKS_F2},
               "quick": bool(args.quick), "command": argv_text}
-    os.makedirs(args.output, exist_ok=True)
-    jpath = os.path.join(args.output, "bench.json")
+    with _blas_threads(result["machine"]):
+        os.makedirs(args.output, exist_ok=True)
+        jpath = os.path.join(args.output, "bench.json")
 
-    def save():
-        with open(jpath, "w") as fh:
-            json.dump(result, fh, indent=1, default=float)
+        def save():
+            with open(jpath, "w") as fh:
+                json.dump(result, fh, indent=1, default=float)
 
-    if "A" in part:
-        print("Part A: seed vs exact on the main demo and on the two steel blocks"
-              + (" (coarse mesh of the blocks)" if args.quick else ""), flush=True)
-        result["repeat"], result["min_time"] = repeat, min_time
-        result["part_a"] = part_a(quick=args.quick, repeat=repeat, min_time=min_time)
-        save()
-        print(table_a(result["part_a"]), "\n", flush=True)
-    if "B" in part:
-        if args.skip_large:
-            sizes = [s for s in sizes if s <= LARGE]
-        F = max(dm.DEMO_FRICTIONS)
-        print(f"Part B: exact method, condensed backend, F = {F:g}", flush=True)
-        result["part_b"] = []
-        ranks = int(getattr(args, "mpi", 1) or 1)
-        if ranks < 1:
-            raise InputError(f"--mpi must be >= 1, got {ranks}")
-        for s in sizes:
-            result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
+        if "A" in part:
+            print("Part A: seed vs exact on the main demo and on the two steel blocks"
+                  + (" (coarse mesh of the blocks)" if args.quick else ""), flush=True)
+            result["repeat"], result["min_time"] = repeat, min_time
+            result["part_a"] = part_a(quick=args.quick, repeat=repeat, min_time=min_time)
             save()
-            if ranks > 1:
-                row = run_size(s, F, args.timeout, args.petsc_option, ranks=ranks)
-                row.update(compare_ranks(result["part_b"][-1], row))
-                result["part_b"].append(row)
+            print(table_a(result["part_a"]), "\n", flush=True)
+        if "B" in part:
+            if args.skip_large:
+                sizes = [s for s in sizes if s <= LARGE]
+            F = max(dm.DEMO_FRICTIONS)
+            print(f"Part B: exact method, condensed backend, F = {F:g}", flush=True)
+            result["part_b"] = []
+            ranks = int(getattr(args, "mpi", 1) or 1)
+            if ranks < 1:
+                raise InputError(f"--mpi must be >= 1, got {ranks}")
+            for s in sizes:
+                result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
                 save()
-        print(table_b(result["part_b"]), flush=True)
-        print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
-    if "C" in part or "D" in part:
-        from cfcontact import bench_stress as bs
-    if "C" in part:
-        print("Part C: long interfaces (exact method, condensed backend with factorization updates)", flush=True)
-        result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit, sizes=strip_m)
+                if ranks > 1:
+                    row = run_size(s, F, args.timeout, args.petsc_option, ranks=ranks)
+                    row.update(compare_ranks(result["part_b"][-1], row))
+                    result["part_b"].append(row)
+                    save()
+            print(table_b(result["part_b"]), flush=True)
+            print("ratio = (assembly + factor K + condensation + path) / (assembly + factor K)", flush=True)
+        if "C" in part or "D" in part:
+            from cfcontact import bench_stress as bs
+        if "C" in part:
+            print("Part C: long interfaces (exact method, condensed backend with factorization updates)", flush=True)
+            result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit, sizes=strip_m)
+            save()
+            print(bs.table(result["part_c"]["rows"]), flush=True)
+            print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)
+        if "D" in part:
+            print("Part D: hard cases of the exact method", flush=True)
+            result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m)
+            save()
+            print(bs.table(result["part_d"]["rows"]), flush=True)
+            for name, rl in result["part_d"]["random_loads"].items():
+                print(f"random load paths, {name} model, F = 30: {rl['summary']}", flush=True)
+        if "E" in part:
+            print("Part E: friction map, fold curves and critical friction of the main demo's load path", flush=True)
+            result["part_e"] = part_e(quick=args.quick)
+            save()
+            print(table_e(result["part_e"]), flush=True)
+        result["machine"]["loadavg_end"] = os.getloadavg()
         save()
-        print(bs.table(result["part_c"]["rows"]), flush=True)
-        print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)
-    if "D" in part:
-        print("Part D: hard cases of the exact method", flush=True)
-        result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m)
-        save()
-        print(bs.table(result["part_d"]["rows"]), flush=True)
-        for name, rl in result["part_d"]["random_loads"].items():
-            print(f"random load paths, {name} model, F = 30: {rl['summary']}", flush=True)
-    if "E" in part:
-        print("Part E: friction map, fold curves and critical friction of the main demo's load path", flush=True)
-        result["part_e"] = part_e(quick=args.quick)
-        save()
-        print(table_e(result["part_e"]), flush=True)
-    result["machine"]["loadavg_end"] = os.getloadavg()
-    save()
-    print(f"\nwritten {os.path.abspath(jpath)}")
-    return 0
+        print(f"\nwritten {os.path.abspath(jpath)}")
+        return 0
 
 
 def main(argv=None):

@@ -144,3 +144,24 @@ def test_bench_parts_c_and_d_quick(tmp_path):
         assert s["runs"] == 4 and s["status"] == {"completed": 4}, s
     text = bs.table(c["rows"] + d["rows"])
     assert "s/trans." in text and "completed" in text
+
+
+def test_bench_runs_blas_single_threaded_unless_told(monkeypatch):
+    """The benchmark's convention (docs/bench.md): one BLAS thread in its own process and in the
+    workers it starts (OPENBLAS_NUM_THREADS=1 while it runs, restored after), unless the caller
+    set OPENBLAS_NUM_THREADS; bench.json records which."""
+    from threadpoolctl import threadpool_info
+
+    from cfcontact.bench import _blas_threads
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    machine = {}
+    with _blas_threads(machine):
+        assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
+        assert all(p["num_threads"] == 1 for p in threadpool_info() if p["user_api"] == "blas")
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
+    assert machine["openblas_num_threads"].startswith("1")
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    with _blas_threads(machine):
+        assert os.environ["OPENBLAS_NUM_THREADS"] == "2"
+    assert machine["openblas_num_threads"] == "2"
