@@ -1032,7 +1032,7 @@ class PointModel:
 
 class PointTableau:
     """The branches through one degenerate point, seen only at the point's own nodes: the
-    lexicographic walk's tableau, one rank-2 update per pivot.
+    lexicographic walk's tableau, one rank-one or rank-two update per pivot.
 
     At a degenerate point only the constraints of the nodes with an indicator vanishing there
     can decide a pivot (every other constraint is positive at the point, and the pivots move
@@ -1046,8 +1046,9 @@ class PointTableau:
     and the nodes' indicators as three more rows per node (linear in those rows, less their
     constant part rho w), which a change of one node's state updates by itself, exactly as
     :class:`PointModel` updates its full columns (X' = X - U_q C^-1 (Delta X - dr), U' = U - U_q
-    C^-1 Delta U): O(k (p + 2k)) per pivot, independent of m.  There is no residual check (it would cost O(m^2)): the walk
-    forms its last branch afresh and compares (:func:`cfcontact.exact._tableau_walk`)."""
+    C^-1 Delta U; rank one when only one of the node's rows changes): O(k (p + 2k)) per pivot,
+    independent of m.  There is no residual check (it would cost O(m^2)): the walk forms its
+    last branch afresh and compares (:func:`cfcontact.exact._tableau_walk`)."""
 
     def __init__(self, solver, codes, W, nodes):
         s = solver

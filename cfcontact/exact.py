@@ -89,8 +89,10 @@ POINT_MODEL_MIN_PIVOTS = 3
 #: no more than an update's bookkeeping (measured: equal at m = 48, the model 3x faster at m = 96).
 POINT_MODEL_MIN_SIZE = 160
 #: A degenerate point with at least this many nodes near a vanishing indicator is crossed on its
-#: tableau (:class:`cfcontact.condensed.PointTableau`, :func:`_tableau_walk`): a rank-2 update of a
-#: small array per pivot instead of a solve; at fewer nodes a solve per pivot costs no more.
+#: tableau (:class:`cfcontact.condensed.PointTableau`, :func:`_tableau_walk`): a rank-one or
+#: rank-two update of a small array per pivot instead of a solve; at fewer nodes a solve per pivot
+#: costs no more.  (Its stat ``tableau_updates`` counts those updates, also of a walk that then
+#: starts over with a solve per pivot.)
 TABLEAU_MIN_NODES = 8
 #: The leaving branch formed afresh must have the rates that the tableau gave it within this share
 #: of their size (else the walk starts over with a solve per pivot).

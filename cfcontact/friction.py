@@ -342,9 +342,9 @@ def _check_request(system, alpha, F_start, F_end, options, method, solver):
 def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple:
     """(codes, how): the state codes of a solution at the load f(alpha) with friction F pattern:
     SSNM in the multipliers, else the exact method's homotopy from the frictionless solution or
-    from the all-open state, else enumeration (small problems).  At F = 0 a closed node with friction slips in the direction of
-    its T u (stick when T u = 0): the states of F = 0+.  ``monitor``: as for
-    :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
+    from the all-open state, else enumeration (small problems).  At F = 0 a closed node with
+    friction slips in the direction of its T u (stick when T u = 0): the states of F = 0+.
+    ``monitor``: as for :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
     sysF = friction_system(system, F, pattern)
     view = solver_at(solver, sysF)
     f = system.load(alpha)

@@ -14,8 +14,8 @@ whose answer decides what happens next:
 accepted point at a time (a step, a transition) and their resume state is always current.
 
 Before the first point there may be a long start (the exact method's homotopies from the
-frictionless solution or the all-open state when SSNM does not converge at alpha_start): a ``monitor`` given to the stepper sees its
-progress (:class:`StartProgress`) and can abandon it.
+frictionless solution or the all-open state when SSNM does not converge at alpha_start): a
+``monitor`` given to the stepper sees its progress (:class:`StartProgress`) and can abandon it.
 """
 
 from __future__ import annotations
