@@ -912,6 +912,20 @@ def _scaled_residual(types, W, X, SX, rho):
     return R
 
 
+def _point_columns(solver, codes, types, W, R):
+    """[X, U] = M(codes)^-1 [r(codes, W), P_R] (2m x (p + |R|)) in the full form with the S rows
+    scaled by rho, from a fresh factorization of the sets' reduced system (not kept in the
+    solver's cache): the start of a degenerate point's model or tableau.  Raises
+    SingularSystemError when M(codes) is singular."""
+    m, p, rho = solver.m, W.shape[1], solver.system.rho
+    entry = solver._factor_codes(b"point-columns", codes)
+    solver._lu.pop(b"point-columns", None)
+    B = np.zeros((2 * m, p + R.size))
+    B[:, :p] = _scaled_rhs(types, W, rho)
+    B[R, p + np.arange(R.size)] = 1.0
+    return _full_solve(solver, entry, B, rho)
+
+
 #: The point model's updated solutions are trusted while the residual of M(Z) X = r(Z, W) (S
 #: rows scaled by rho) stays below this share of the size of its terms; else it starts over
 #: with a fresh factorization at that branch.
@@ -949,15 +963,10 @@ class PointModel:
         self._build(np.asarray(codes, dtype=np.int8))
 
     def _build(self, codes):
-        s, m = self.s, self.m
-        entry = s._factor_codes(b"point-model", codes)  # SingularSystemError when M(codes) is singular
-        s._lu.pop(b"point-model", None)
+        s = self.s
         types = _node_types(s, codes)
-        z2, p = self.R.size, self.W.shape[1]
-        B = np.zeros((2 * m, p + z2))
-        B[:, :p] = _scaled_rhs(types, self.W, self.rho)
-        B[self.R, p + np.arange(z2)] = 1.0
-        XU = _full_solve(s, entry, B, self.rho)
+        p = self.W.shape[1]
+        XU = _point_columns(s, codes, types, self.W, self.R)
         # kept as one array: [[X, U], [S[R] X, S[R] U]] (one rank-2 update changes it all)
         self.A = np.asfortranarray(np.vstack([XU, s.S[self.R] @ XU]))  # Fortran: updated in place (dger)
         self.SX = _s_times(s, XU[:, :p])
@@ -1060,12 +1069,7 @@ class PointTableau:
         W = np.asarray(W, dtype=float)
         self.p = p = W.shape[1]
         codes = np.asarray(codes, dtype=np.int8)
-        entry = s._factor_codes(b"point-tableau", codes)  # SingularSystemError when M(codes) is singular
-        s._lu.pop(b"point-tableau", None)
-        B = np.zeros((2 * m, p + 2 * k))
-        B[:, :p] = _scaled_rhs(_node_types(s, codes), W, rho)
-        B[R, p + np.arange(2 * k)] = 1.0
-        XU = _full_solve(s, entry, B, rho)
+        XU = _point_columns(s, codes, _node_types(s, codes), W, R)
         X, SX = XU[R], s.S[R] @ XU
         self.F = F = s.F[nodes]
         # the indicators' rows without their constant part (lam + rho (w - S lam) less rho w): the

@@ -1310,7 +1310,7 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None, n0=0) -> tuple:
     scale = max(np.abs(w).max(initial=0.0), 1e-300)
     c = 1.1 * max(0.0, -float(w[:m].min(initial=0.0)), Fmax * float(np.abs(w[m:]).max(initial=0.0))) + scale
     w_open = np.concatenate([np.full(m, -c), w[m:]])
-    return _homotopy(ctx, alpha, w_open, np.zeros(m, dtype=np.int8), "homotopy", monitor, n0)
+    return _homotopy(ctx, alpha, w_open, w, np.zeros(m, dtype=np.int8), "homotopy", monitor, n0)
 
 
 def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
@@ -1338,17 +1338,16 @@ def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
     w0 = w.copy()
     w0[m + closed] = solver.S[m + closed] @ lam
     codes = _canon(ctx.system, sets_from_codes(np.where(~Z.nu, STICK, OPEN)))
-    return _homotopy(ctx, alpha, w0, codes, "frictionless", monitor)
+    return _homotopy(ctx, alpha, w0, w, codes, "frictionless", monitor)
 
 
-def _homotopy(ctx: _Context, alpha, w0, codes, stage, monitor=None, n0=0) -> tuple:
+def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0) -> tuple:
     """(sets, transitions) of the exact method's walk in t from the solution of state ``codes`` of
-    the data w0 at t = 0 to the data w(alpha) at t = 1; sets = None when the walk does not reach
+    the data w0 at t = 0 to the data w = w(alpha) at t = 1; sets = None when the walk does not reach
     t = 1 (it turns back to t = 0, or ends otherwise), or the state is no solution at t = 0.
     ``stage``: the name the monitor sees, with the transitions counted from ``n0`` (see
     :func:`_homotopy_start`)."""
     data = ctx.data
-    w = (1.0 - alpha) * data.w1 + alpha * data.w2
     # the path's own transition cap does not bound its start (the homotopy ends: each branch once)
     hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None,
                                        max_transitions=max(int(ctx.opts.max_transitions), HOMOTOPY_MAX_TRANSITIONS))

@@ -184,6 +184,17 @@ def test_updates_near_singular_branches_keep_the_path():
     assert (a.transitions[17000].node, a.transitions[17000].set) == (82, "nu")
 
 
+def _point_setup(system, rng):
+    """(solver without updates, W = the loads' data and two random columns, the F = 0 mask, 15
+    random nodes of a degenerate point, every node closed: slipping at F = 0, else sticking)."""
+    m = system.m
+    solver = CondensedSolver(system, SolverOptions(updates=False))
+    W = np.column_stack([solver.load_data_many(list(system.loads_numpy())), rng.standard_normal((2 * m, 2))])
+    F0 = system.friction_vector == 0.0
+    nodes = np.sort(rng.choice(m, size=15, replace=False))
+    return solver, W, F0, nodes, np.where(F0, SLIP_P, STICK).astype(np.int8)
+
+
 def test_point_model_equals_fresh_solves():
     """The point model of a degenerate point (rank-2 updates, one node's state at a time, from a
     first branch) gives the multipliers of a fresh factorization on a long random walk through
@@ -194,11 +205,7 @@ def test_point_model_equals_fresh_solves():
     m = 40
     friction = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0.2, 3.0, m))
     system = random_system(m, 5, friction=friction, extra_dofs=10)
-    solver = CondensedSolver(system, SolverOptions(updates=False))
-    W = np.column_stack([solver.load_data_many(list(system.loads_numpy())), rng.standard_normal((2 * m, 2))])
-    F0 = system.friction_vector == 0.0
-    nodes = np.sort(rng.choice(m, size=15, replace=False))
-    codes = np.where(F0, SLIP_P, STICK).astype(np.int8)
+    solver, W, F0, nodes, codes = _point_setup(system, rng)
     model = PointModel(solver, codes, W, nodes)
     for step in range(200):
         i = int(rng.choice(nodes))
@@ -235,11 +242,7 @@ def test_point_tableau_equals_fresh_solves():
     f1, f2 = rng.standard_normal(n), rng.standard_normal(n)
     system = ContactSystem.from_arrays(A @ A.T / n + np.eye(n), N, T, f1, f2, friction)
     assert np.array_equal(system.no_tangent, nt)
-    solver = CondensedSolver(system, SolverOptions(updates=False))
-    W = np.column_stack([solver.load_data_many(list(system.loads_numpy())), rng.standard_normal((2 * m, 2))])
-    F0 = system.friction_vector == 0.0
-    nodes = np.sort(rng.choice(m, size=15, replace=False))
-    codes = np.where(F0, SLIP_P, STICK).astype(np.int8)
+    solver, W, F0, nodes, codes = _point_setup(system, rng)
     tab = PointTableau(solver, codes, W, nodes)
     ranks = set()
     for step in range(300):
