@@ -81,6 +81,34 @@ _dger = sla.blas.dger  # the point model's rank-1 updates in place (Fortran-orde
 # per-node state codes (ssnm.STATE_NAMES order) and lam_t / (F lam_n) of a slipping node by code
 _OPEN, _STICK, _SLIP_P, _SLIP_M = 0, 1, 2, 3
 _SLIP_SIGN = np.array([0.0, 0.0, 1.0, -1.0])
+#: From this many rows on, a product or an LU solve with 2 or 3 right-hand sides goes column by
+#: column (:func:`_times`, :func:`_lu_solve`).  The branches of the exact method have two (the
+#: values and the rates), and OpenBLAS' gemm and getrs with so few columns were slower than as
+#: many matrix-vector products and triangular solves: 1.5-2.2x at n = 500-1728 (gemm), 1.5-2.4x
+#: at n = 800-1728 (getrs), single thread, Debian 12; about even near n = 300.
+COLUMNWISE_MIN_ROWS = 400
+
+
+def _times(A, X):
+    """A @ X, column by column when X has 2-3 columns and A at least COLUMNWISE_MIN_ROWS rows."""
+    c = X.shape[1] if X.ndim == 2 else 0
+    if c < 2 or c > 3 or A.shape[0] < COLUMNWISE_MIN_ROWS:
+        return A @ X
+    out = np.empty((A.shape[0], c))
+    for j in range(c):
+        out[:, j] = A @ X[:, j]
+    return out
+
+
+def _lu_solve(lu, piv, B, trans=0):
+    """getrs(lu, piv, B) (``trans``: with the transpose), column by column as :func:`_times`."""
+    c = B.shape[1] if B.ndim == 2 else 0
+    if c < 2 or c > 3 or lu.shape[0] < COLUMNWISE_MIN_ROWS:
+        return _getrs(lu, piv, B, trans=trans)[0]
+    out = np.empty(B.shape)
+    for j in range(c):
+        out[:, j] = _getrs(lu, piv, B[:, j], trans=trans)[0]
+    return out
 
 
 @dataclass
@@ -607,7 +635,7 @@ class CondensedSolver:
         self.stats.dense_solves += W.shape[1]
         lam = np.zeros((2 * self.m, W.shape[1]))
         if rows.size:
-            lam[rows] = _getrs(lu, piv, W.take(rows, axis=0), trans=1)[0]
+            lam[rows] = _lu_solve(lu, piv, W.take(rows, axis=0), trans=1)
         if slip.size:
             lam[self.m + slip] = coef[:, None] * lam[slip]
         return lam
@@ -622,8 +650,8 @@ class CondensedSolver:
         lam of its equation rows, solved with the same LU), none with ``plain`` (rates and
         perturbation responses of the intermediate branches of a degenerate point, which only order
         its pivots).  ``refine``: a third result, the change the refinement made to the indicators
-        (3m x k), an estimate of their rounding error (with updates: the change of the last of their
-        refinement steps)."""
+        (3m x k), an estimate of their rounding error (with updates: the change the last refinement
+        step made, times the share by which that step contracted the error)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
@@ -693,9 +721,9 @@ class CondensedSolver:
         m, rho = self.m, self.system.rho
         nz = support if support is not None else (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
         if 2 * nz.size < lam.shape[0]:  # open nodes carry no force: only the columns of S of the others
-            Bu = w - self.St.take(nz, axis=0).T @ lam[nz]  # columns of S as rows of S^T: contiguous
+            Bu = w - _times(self.St.take(nz, axis=0).T, lam[nz])  # columns of S as rows of S^T: contiguous
         else:
-            Bu = w - self.S @ lam
+            Bu = w - _times(self.S, lam)
         g = lam + rho * Bu  # (a; b) with a = lam_n + rho N u, b = lam_t + rho T u
         F_lam_n = (self.F if lam.ndim == 1 else self.F[:, None]) * lam[:m]
         b = g[m:]
@@ -852,8 +880,8 @@ def _s_times(solver, X):
     """S X, reading only the columns of S (rows of S^T) where X has non-zero rows."""
     nz = (X != 0.0).any(axis=1).nonzero()[0]
     if 4 * nz.size >= X.shape[0]:
-        return solver.S @ X
-    return solver.St[nz].T @ X[nz]
+        return _times(solver.S, X)
+    return _times(solver.St[nz].T, X[nz])
 
 
 def _node_types(solver, codes):
@@ -877,7 +905,7 @@ def _full_solve(solver, entry, B, rho):
     Z's reduced system (:meth:`CondensedSolver._factor_codes`): the unknowns fixed by unit rows
     take their right-hand side, the reduced system gets the rest."""
     lu, piv, rows, slip, coef, _ = entry
-    m, S = solver.m, solver.S
+    m = solver.m
     X = np.array(B, dtype=float, copy=True)
     fixed = np.ones(2 * m, dtype=bool)
     fixed[rows] = False
@@ -885,10 +913,27 @@ def _full_solve(solver, entry, B, rho):
     if rows.size:
         rhs = X[rows] / rho
         if nz.size:
-            rhs = rhs - S[np.ix_(rows, nz)] @ X[nz]
-        X[rows] = _getrs(lu, piv, rhs, trans=1)[0]
+            # S[rows, nz] X[nz] from contiguous rows of S^T (a 2-D gather of S is slower)
+            rhs = rhs - _times(solver.St[nz].T, X[nz])[rows]
+        X[rows] = _lu_solve(lu, piv, rhs, trans=1)
     if slip.size:
         X[m + slip] += coef[:, None] * X[slip]
+    return X
+
+
+def _unit_rows_exact(types, nodes, X, m):
+    """X with the unit rows of ``nodes`` (:func:`_node_types` ``types``) satisfied exactly for a
+    right-hand side that is zero there: lam_n = 0 at an open node, lam_t = coef lam_n at a node
+    whose tangential row is a unit row (lam_t = 0 when open or without tangential unknown, F sgn
+    lam_n when slipping).  In place; returns X."""
+    closed, t_s, coef = types
+    Xn = X[nodes]
+    Xn[~closed[nodes]] = 0.0
+    X[nodes] = Xn
+    unit_t = ~t_s[nodes]
+    if unit_t.any():
+        j = nodes[unit_t]
+        X[m + j] = coef[j, None] * Xn[unit_t]
     return X
 
 
@@ -1149,6 +1194,11 @@ UPDATE_REFINE_RTOL = 1e-8
 #: updated solve can be 1e6 times less accurate than a fresh LU, and its wide rounding bounds
 #: would merge separate transitions into one degenerate point (a different path).
 UPDATE_ERR_RTOL = 1e-10
+#: One step of refinement is enough when its correction is at most this share of the multipliers:
+#: the first solve was that accurate, so the error the step leaves is about that share of the
+#: correction (on the strips of Part C: first corrections 2e-10 to 1.5e-7 of lam, second ones
+#: 1e-21 to 1e-13; a second step cost one more solve and product with S per branch).
+UPDATE_ONE_STEP_RTOL = 1e-7
 
 
 class _Updater:
@@ -1171,8 +1221,15 @@ class _Updater:
     for C -- O(m^2) per branch instead of the O(m^3) of a fresh factorization.  The base is
     refactored at the branch being solved when |D| would exceed ``max_rank`` (balancing the
     refactorization against C: (2m)^(3/4) or so), or when a step of iterative refinement against
-    M(Z) itself shows that the updates lost accuracy.  Every solve is refined once against M(Z)
-    (its rows are those of S and unit rows), which also measures the result's rounding error."""
+    M(Z) itself shows that the updates lost accuracy.  Every solve is refined against M(Z) (its
+    rows are those of S and unit rows), which also measures the result's rounding error: one step
+    when its correction is at most UPDATE_ONE_STEP_RTOL of lam, else until the corrections stop
+    shrinking.  The unit rows of D's nodes are made to hold exactly after each solve (they hold to
+    rounding only after the Woodbury formula), so the refinement's right-hand side is zero there.
+
+    Cost per branch: one solve with the kept LU for the values and rates (with the columns of
+    nodes new to the cache), a product with S, and per refinement step one more solve and product;
+    products and solves with the two columns go column by column (:data:`COLUMNWISE_MIN_ROWS`)."""
 
     def __init__(self, solver, max_rank: Optional[int] = None):
         self.s = solver
@@ -1201,7 +1258,9 @@ class _Updater:
         self.types0 = self._types(codes)
         self.pos = {}  # node -> its index in the cache
         self.nodes = []
-        self.Zc = np.empty((2 * self.m, 16))  # columns 2q, 2q + 1: M0^-1 e_j, M0^-1 e_(m+j) of cached node q
+        # rows 2q, 2q + 1: (M0^-1 e_j)^T, (M0^-1 e_(m+j))^T of cached node q (Zc's columns as rows:
+        # a branch gathers those of its nodes D as contiguous rows)
+        self.ZcT = np.empty((16, 2 * self.m))
         self.SZ = np.empty((16, 16))  # rows 2q, 2q + 1: S[j] Zc, S[m + j] Zc
         self.refactorizations += 1
 
@@ -1209,33 +1268,38 @@ class _Updater:
         """M(Z0)^-1 B (2m x c), the S rows of M(Z0) scaled by rho."""
         return _full_solve(self.s, self.entry0, B, self.rho)
 
-    def _ensure(self, D):
-        """Cache Zc and the S products for the nodes D."""
+    def _ensure(self, D, B=None):
+        """Cache Zc and the S products for the nodes D.  With ``B``: return M(Z0)^-1 B too, from
+        the same solve as the new columns of Zc when there are any (one pass over the kept LU)."""
         new = [int(j) for j in D if int(j) not in self.pos]
         if not new:
-            return
+            return None if B is None else self._base_solve(B)
         m, S = self.m, self.s.S
         q0 = len(self.nodes)
         q1 = q0 + len(new)
-        if 2 * q1 > self.Zc.shape[1]:
-            cap = max(2 * q1, 2 * self.Zc.shape[1])
-            Zc = np.empty((2 * m, cap))
-            Zc[:, :2 * q0] = self.Zc[:, :2 * q0]
+        if 2 * q1 > self.ZcT.shape[0]:
+            cap = max(2 * q1, 2 * self.ZcT.shape[0])
+            ZcT = np.empty((cap, 2 * m))
+            ZcT[:2 * q0] = self.ZcT[:2 * q0]
             SZ = np.empty((cap, cap))
             SZ[:2 * q0, :2 * q0] = self.SZ[:2 * q0, :2 * q0]
-            self.Zc, self.SZ = Zc, SZ
+            self.ZcT, self.SZ = ZcT, SZ
         idx = np.array(new)
-        U = np.zeros((2 * m, 2 * len(new)))
+        k = 2 * len(new)
+        U = np.zeros((2 * m, k + (0 if B is None else B.shape[1])))
         U[idx, 2 * np.arange(len(new))] = 1.0
         U[m + idx, 2 * np.arange(len(new)) + 1] = 1.0
-        self.Zc[:, 2 * q0:2 * q1] = self._base_solve(U)
-        for k, j in enumerate(new):
-            self.pos[j] = q0 + k
+        if B is not None:
+            U[:, k:] = B
+        X = self._base_solve(U)
+        self.ZcT[2 * q0:2 * q1] = X[:, :k].T
+        for q, j in enumerate(new):
+            self.pos[j] = q0 + q
         self.nodes.extend(new)
         rows_all = _node_rows(self.m, np.array(self.nodes))
-        Zall = self.Zc[:, :2 * q1]
-        self.SZ[2 * q0:2 * q1, :2 * q1] = S[rows_all[2 * q0:2 * q1]] @ Zall
-        self.SZ[:2 * q0, 2 * q0:2 * q1] = S[rows_all[:2 * q0]] @ self.Zc[:, 2 * q0:2 * q1]
+        self.SZ[2 * q0:2 * q1, :2 * q1] = S[rows_all[2 * q0:2 * q1]] @ self.ZcT[:2 * q1].T
+        self.SZ[:2 * q0, 2 * q0:2 * q1] = _times(S[rows_all[:2 * q0]], self.ZcT[2 * q0:2 * q1].T)
+        return None if B is None else X[:, k:]
 
     def _vt(self, D, types, X, SX):
         """V^T X (2|D| x c, rows interleaved per node) with SX = S[rows of D] X."""
@@ -1253,11 +1317,11 @@ class _Updater:
         """B -> M(Z)^-1 B by the Woodbury identity on the kept base (C factored once), or None when
         C is singular."""
         if not D.size:
-            return self._base_solve
+            return lambda B, y=None: self._base_solve(B) if y is None else y
         q = np.array([self.pos[int(j)] for j in D])
         cols = np.empty(2 * q.size, dtype=np.intp)
         cols[0::2], cols[1::2] = 2 * q, 2 * q + 1
-        ZcD = self.Zc[:, cols]
+        ZcD = self.ZcT[cols].T  # 2m x 2|D| (a transposed view of gathered rows)
         C = self._vt(D, types, ZcD, self.SZ[np.ix_(cols, cols)])
         C[np.diag_indices_from(C)] += 1.0
         lu, piv, info = _getrf(C)
@@ -1266,9 +1330,14 @@ class _Updater:
             return None
         SD = self.s.S[_node_rows(self.m, D)]
 
-        def solve(B):
-            y = self._base_solve(B)
-            return y - ZcD @ _getrs(lu, piv, self._vt(D, types, y, SD @ y))[0]
+        def solve(B, y=None):  # y: M(Z0)^-1 B when known
+            if y is None:
+                y = self._base_solve(B)
+            X = y - _times(ZcD, _getrs(lu, piv, self._vt(D, types, y, _times(SD, y)))[0])
+            # D's unit rows hold to rounding only: make them exact (the other nodes' are, as in
+            # M(Z0)^-1 B), so that the refinement residual is zero on every unit row and its
+            # solve needs no product with S's columns of the fixed unknowns
+            return _unit_rows_exact(types, D, X, self.m)
 
         return solve
 
@@ -1292,9 +1361,9 @@ class _Updater:
             D = D[:0]
         B = _scaled_rhs(types, W, self.rho)
         for attempt in range(2):
-            self._ensure(D)
+            y = self._ensure(D, B)
             solve = self._solver(types, D)
-            L = None if solve is None else solve(B)
+            L = None if solve is None else solve(B, y)
             if L is None:  # M(Z) singular (C singular with a regular base), or the updates broke down
                 if attempt == 0 and D.size:
                     self.reasons["singular"] = self.reasons.get("singular", 0) + 1
@@ -1316,6 +1385,12 @@ class _Updater:
                 SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
+                if not step and size <= UPDATE_ONE_STEP_RTOL * max(np.abs(L).max(initial=0.0), 1e-300):
+                    # the first solve was this accurate (relative): refinement contracts the error
+                    # by about as much per step, so what this correction leaves is its size times
+                    # that -- at the rounding level; a second step would only confirm it
+                    Eg_scale = size / max(np.abs(L).max(initial=0.0), 1e-300)
+                    break
                 if step and size <= 1e-3 * sizes[0]:
                     # converged (the correction is applied: after a poor first solve -- 5 % off on a
                     # strip at F = 30 -- it can still be 3e-8 of lam); the next one would be about

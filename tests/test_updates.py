@@ -12,6 +12,7 @@ import pytest
 import scipy.linalg as sla
 
 import cfcontact
+from cfcontact import condensed
 from cfcontact.condensed import CondensedSolver, _Updater
 from cfcontact.exact import OPEN, SLIP_M, SLIP_P, STICK, canonical_codes
 from cfcontact.lumped import random_system
@@ -39,10 +40,10 @@ def random_walk(rng, m, F0, steps):
     return out
 
 
-@pytest.mark.parametrize("max_rank", [3, 12, None])
-def test_updated_branches_equal_fresh_factorizations(max_rank):
+@pytest.mark.parametrize("max_rank, m", [(3, 40), (12, 40), (None, 40), (None, 210)])
+def test_updated_branches_equal_fresh_factorizations(max_rank, m):
+    """m = 210: 2m >= COLUMNWISE_MIN_ROWS, the products and solves go column by column."""
     rng = np.random.default_rng(7)
-    m = 40
     friction = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0.2, 3.0, m))
     system = random_system(m, 3, friction=friction, extra_dofs=10)
     ref = CondensedSolver(system, SolverOptions(updates=False))
@@ -63,6 +64,23 @@ def test_updated_branches_equal_fresh_factorizations(max_rank):
         assert upd._updater.refactorizations > 5
     else:
         assert upd._updater.refactorizations < 40
+
+
+@pytest.mark.parametrize("n", [50, 450])
+def test_columnwise_products_and_solves_equal_blas_ones(n):
+    """_times and _lu_solve (column by column from COLUMNWISE_MIN_ROWS rows on) give A X and
+    A^-1 X, A^-T X to rounding for 1 to 4 columns and vectors."""
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((n, n)) + n * np.eye(n)
+    lu, piv, _ = sla.lapack.dgetrf(A)
+    for c in (None, 1, 2, 3, 4):
+        X = rng.standard_normal(n if c is None else (n, c))
+        assert np.allclose(condensed._times(A, X), A @ X, rtol=0, atol=1e-12 * np.abs(A).max() * n)
+        assert np.allclose(condensed._times(A.T, X), A.T @ X, rtol=0, atol=1e-12 * np.abs(A).max() * n)
+        for trans, Ar in ((0, A), (1, A.T)):
+            Y = condensed._lu_solve(lu, piv, X, trans=trans)
+            assert Y.shape == X.shape
+            assert np.abs(Ar @ Y - X).max() <= 1e-12 * np.abs(X).max() * n
 
 
 def test_singular_sets_are_reported_by_the_updates_too():
@@ -119,10 +137,15 @@ def _same_paths(a, b):
         [canonical_codes(x.sets, b.friction).tolist() for x in b.branches]
 
 
-@pytest.mark.parametrize("friction, copies, m", [(0.5, 1, 90), (2.7, 1, 16), (2.7, 2, 16)])
-def test_paths_with_updates_equal_paths_without(friction, copies, m):
+@pytest.mark.parametrize("friction, copies, m, columnwise", [(0.5, 1, 90, False), (2.7, 1, 16, False),
+                                                             (2.7, 2, 16, False), (2.7, 2, 16, True)])
+def test_paths_with_updates_equal_paths_without(friction, copies, m, columnwise, monkeypatch):
     """Long paths (folds at F = 2.7, above the chain's critical friction; exact ties between the
-    copies' transitions: degenerate points) are the same with and without updates."""
+    copies' transitions: degenerate points) are the same with and without updates.
+    ``columnwise``: every product and solve with 2-3 columns goes column by column, as on large
+    interfaces."""
+    if columnwise:
+        monkeypatch.setattr(condensed, "COLUMNWISE_MIN_ROWS", 1)
     system = _chain(m // copies, friction, 5, copies)
     paths = {}
     for updates in (True, False):
