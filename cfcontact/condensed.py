@@ -650,8 +650,8 @@ class CondensedSolver:
         lam of its equation rows, solved with the same LU), none with ``plain`` (rates and
         perturbation responses of the intermediate branches of a degenerate point, which only order
         its pivots).  ``refine``: a third result, the change the refinement made to the indicators
-        (3m x k), an estimate of their rounding error (with updates: the change the last refinement
-        step made, times the share by which that step contracted the error)."""
+        (3m x k), an estimate of their rounding error (with updates: the change of the last of their
+        refinement steps, times its contraction)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
@@ -666,11 +666,12 @@ class CondensedSolver:
         if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
             if len(self._lu_extra) > 2 * max(64, self.options.cache):
                 self._lu_extra.clear()
-            extra = (lu, self.St.take(support, axis=0), np.searchsorted(rows[:rows.size - (rows >= self.m).sum()],
-                                                                       slip))
+            # (below UPDATE_MIN_SIZE the whole of S is cheaper to multiply than its rows to gather)
+            extra = (lu, None if 2 * self.m < UPDATE_MIN_SIZE else self.St.take(support, axis=0),
+                     np.searchsorted(rows[:rows.size - (rows >= self.m).sum()], slip))
             self._lu_extra[key] = extra
         _, Ssup, pos = extra
-        m, c = self.m, W.shape[1]
+        m, c, S = self.m, W.shape[1], self.S
         if not rows.size:
             L = np.zeros((2 * m, c))
             G = self._ind(L, W, np.zeros_like(W))
@@ -682,7 +683,7 @@ class CondensedSolver:
             full[rows] = x
             if slip.size:
                 full[m + slip] = coef[:, None] * x[pos]
-            return full, Ssup.T @ full[support]
+            return full, (S @ full if Ssup is None else Ssup.T @ full[support])
 
         L, SL = expand(_getrs(lu, piv, Wr, trans=1)[0])
         # one step of refinement (its correction measures the rounding error of a fresh factorization's
@@ -1194,11 +1195,6 @@ UPDATE_REFINE_RTOL = 1e-8
 #: updated solve can be 1e6 times less accurate than a fresh LU, and its wide rounding bounds
 #: would merge separate transitions into one degenerate point (a different path).
 UPDATE_ERR_RTOL = 1e-10
-#: One step of refinement is enough when its correction is at most this share of the multipliers:
-#: the first solve was that accurate, so the error the step leaves is about that share of the
-#: correction (on the strips of Part C: first corrections 2e-10 to 1.5e-7 of lam, second ones
-#: 1e-21 to 1e-13; a second step cost one more solve and product with S per branch).
-UPDATE_ONE_STEP_RTOL = 1e-7
 
 
 class _Updater:
@@ -1222,10 +1218,11 @@ class _Updater:
     refactored at the branch being solved when |D| would exceed ``max_rank`` (balancing the
     refactorization against C: (2m)^(3/4) or so), or when a step of iterative refinement against
     M(Z) itself shows that the updates lost accuracy.  Every solve is refined against M(Z) (its
-    rows are those of S and unit rows), which also measures the result's rounding error: one step
-    when its correction is at most UPDATE_ONE_STEP_RTOL of lam, else until the corrections stop
-    shrinking.  The unit rows of D's nodes are made to hold exactly after each solve (they hold to
-    rounding only after the Woodbury formula), so the refinement's right-hand side is zero there.
+    rows are those of S and unit rows) until a correction has fallen below 1e-3 of the first (two
+    steps as a rule: the second measures the contraction, which is what reveals a near-singular
+    branch), which also measures the result's rounding error.  The unit rows of D's nodes are made
+    to hold exactly after each solve (they hold to rounding only after the Woodbury formula), so
+    the refinement's right-hand side is zero there.
 
     Cost per branch: one solve with the kept LU for the values and rates (with the columns of
     nodes new to the cache), a product with S, and per refinement step one more solve and product;
@@ -1385,12 +1382,6 @@ class _Updater:
                 SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
-                if not step and size <= UPDATE_ONE_STEP_RTOL * max(np.abs(L).max(initial=0.0), 1e-300):
-                    # the first solve was this accurate (relative): refinement contracts the error
-                    # by about as much per step, so what this correction leaves is its size times
-                    # that -- at the rounding level; a second step would only confirm it
-                    Eg_scale = size / max(np.abs(L).max(initial=0.0), 1e-300)
-                    break
                 if step and size <= 1e-3 * sizes[0]:
                     # converged (the correction is applied: after a poor first solve -- 5 % off on a
                     # strip at F = 30 -- it can still be 3e-8 of lam); the next one would be about

@@ -673,18 +673,18 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
                               {"pivots": pivots})
         visited.add((nxt.key, d))
         ctx.stats["pivots"] += 1
-        if nxt is first and not repair and type(ctx.data) is _CondensedData:
-            out = _tableau_walk(ctx, first, d, e, sign, a_star, pivots, visited)
-            if out is not None:
-                return out
         # constraints of nxt that vanish at a_star (its reference point) and do not grow in d
         zero = np.abs(nxt.c) <= nxt.tol_v
         if e >= 0:
             zero[e] = False
         rate = d * nxt.dc
         cand = zero & (rate <= nxt.tol_s)
-        if not cand.any():
+        if not cand.any():  # (an ordinary transition: one pivot)
             return _full_exit(ctx, nxt, a_star), d, pivots, e
+        if nxt is first and not repair and type(ctx.data) is _CondensedData:
+            out = _tableau_walk(ctx, first, d, e, sign, a_star, pivots, visited)
+            if out is not None:
+                return out
         dec = cand & (rate < -nxt.tol_s)
         flat = (cand & ~dec).nonzero()[0]
         repair = False
@@ -735,6 +735,8 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
     g = first.g
     tv = np.broadcast_to(first.ind_tv, (3 * m,))
     near = np.abs(g) <= 4.0 * tv + 256.0 * _alpha_rounding(a_star, first.dg)
+    if np.count_nonzero(near) < TABLEAU_MIN_NODES:  # fewer indicators than nodes needed (most points)
+        return None
     nodes = np.unique(np.flatnonzero(near) % m)
     if nodes.size < TABLEAU_MIN_NODES:
         return None

@@ -362,7 +362,12 @@ def test_interrupt_at_random_points_then_resume_equals_uninterrupted(tmp_path):
         p.send_signal(signal.SIGINT)
         stdout, stderr = p.communicate(timeout=600)
         note = f"trial {k}, SIGINT after {delay:.2f} s of {wall:.2f} s: rc {p.returncode}\n{stdout}\n{stderr}"
-        assert p.returncode in (0, 130), note
+        if p.returncode == -signal.SIGINT:
+            # the signal came before the interpreter had its handler (a loaded machine can take
+            # longer than the shortest delay to start Python): killed before doing anything
+            assert not any(os.path.exists(str(out) + x) for x in ("", ".partial", ".lock")), note
+        else:
+            assert p.returncode in (0, 130), note
         assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, note
         assert len([ln for ln in stderr.splitlines() if "interrupted" in ln or "stopping" in ln]) <= 2, note
         assert not os.path.exists(str(out) + ".lock"), note
