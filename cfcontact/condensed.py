@@ -89,6 +89,25 @@ _SLIP_SIGN = np.array([0.0, 0.0, 1.0, -1.0])
 COLUMNWISE_MIN_ROWS = 400
 
 
+#: The cached dense factorizations of the reduced systems (per set combination) are kept within
+#: this many bytes, the newest first, besides the count limit (SolverOptions.cache, at least 64).
+#: At m = 4000 one LU is 512 MB: 64 of them (the SSNM start at F = 30) took the m = 4000 strip of
+#: Part C to 15 GB and the kernel's OOM killer.
+DENSE_CACHE_BYTES = 1 << 30
+
+
+def _trim_to_bytes(cache, nbytes, largest, limit=None):
+    """Drop the oldest entries of the OrderedDict ``cache`` until its entries' ``nbytes(entry)``
+    sum to at most ``limit`` (default DENSE_CACHE_BYTES); the newest entry always stays.
+    ``largest``: an upper bound of one entry's bytes (no sum needed while count x largest fits)."""
+    limit = DENSE_CACHE_BYTES if limit is None else limit
+    if len(cache) * largest <= limit:
+        return
+    total = sum(nbytes(e) for e in cache.values())
+    while total > limit and len(cache) > 1:
+        total -= nbytes(cache.popitem(last=False)[1])
+
+
 def _times(A, X):
     """A @ X, column by column when X has 2-3 columns and A at least COLUMNWISE_MIN_ROWS rows."""
     c = X.shape[1] if X.ndim == 2 else 0
@@ -605,6 +624,7 @@ class CondensedSolver:
         self._lu[key] = entry
         while len(self._lu) > max(64, self.options.cache):
             self._lu.popitem(last=False)
+        _trim_to_bytes(self._lu, lambda e: e[0].nbytes, 8 * (2 * m) ** 2)
         return entry
 
     def multipliers(self, Z: InactiveSets, w: np.ndarray) -> np.ndarray:
@@ -664,7 +684,8 @@ class CondensedSolver:
         lu, piv, rows, slip, coef, support = entry
         extra = self._lu_extra.get(key)
         if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
-            if len(self._lu_extra) > 2 * max(64, self.options.cache):
+            if len(self._lu_extra) > 2 * max(64, self.options.cache) or (
+                    len(self._lu_extra) * 2 * self.m * support.size * 8 > DENSE_CACHE_BYTES):
                 self._lu_extra.clear()
             # (below UPDATE_MIN_SIZE the whole of S is cheaper to multiply than its rows to gather)
             extra = (lu, None if 2 * self.m < UPDATE_MIN_SIZE else self.St.take(support, axis=0),
@@ -919,22 +940,6 @@ def _full_solve(solver, entry, B, rho):
         X[rows] = _lu_solve(lu, piv, rhs, trans=1)
     if slip.size:
         X[m + slip] += coef[:, None] * X[slip]
-    return X
-
-
-def _unit_rows_exact(types, nodes, X, m):
-    """X with the unit rows of ``nodes`` (:func:`_node_types` ``types``) satisfied exactly for a
-    right-hand side that is zero there: lam_n = 0 at an open node, lam_t = coef lam_n at a node
-    whose tangential row is a unit row (lam_t = 0 when open or without tangential unknown, F sgn
-    lam_n when slipping).  In place; returns X."""
-    closed, t_s, coef = types
-    Xn = X[nodes]
-    Xn[~closed[nodes]] = 0.0
-    X[nodes] = Xn
-    unit_t = ~t_s[nodes]
-    if unit_t.any():
-        j = nodes[unit_t]
-        X[m + j] = coef[j, None] * Xn[unit_t]
     return X
 
 
@@ -1220,9 +1225,7 @@ class _Updater:
     M(Z) itself shows that the updates lost accuracy.  Every solve is refined against M(Z) (its
     rows are those of S and unit rows) until a correction has fallen below 1e-3 of the first (two
     steps as a rule: the second measures the contraction, which is what reveals a near-singular
-    branch), which also measures the result's rounding error.  The unit rows of D's nodes are made
-    to hold exactly after each solve (they hold to rounding only after the Woodbury formula), so
-    the refinement's right-hand side is zero there.
+    branch), which also measures the result's rounding error.
 
     Cost per branch: one solve with the kept LU for the values and rates (with the columns of
     nodes new to the cache), a product with S, and per refinement step one more solve and product;
@@ -1330,11 +1333,9 @@ class _Updater:
         def solve(B, y=None):  # y: M(Z0)^-1 B when known
             if y is None:
                 y = self._base_solve(B)
-            X = y - _times(ZcD, _getrs(lu, piv, self._vt(D, types, y, _times(SD, y)))[0])
-            # D's unit rows hold to rounding only: make them exact (the other nodes' are, as in
-            # M(Z0)^-1 B), so that the refinement residual is zero on every unit row and its
-            # solve needs no product with S's columns of the fixed unknowns
-            return _unit_rows_exact(types, D, X, self.m)
+            # (D's unit rows hold to rounding only; making them exact cost accuracy: on the m = 1000
+            # strip at F = 30 the transitions' alpha drifted 1e-8 from the fresh LUs' after 4900)
+            return y - _times(ZcD, _getrs(lu, piv, self._vt(D, types, y, _times(SD, y)))[0])
 
         return solve
 

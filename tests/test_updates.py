@@ -84,6 +84,28 @@ def test_columnwise_products_and_solves_equal_blas_ones(n):
             assert np.abs(Ar @ Y - X).max() <= 1e-12 * np.abs(X).max() * n
 
 
+def test_dense_factorization_cache_stays_within_its_byte_budget(monkeypatch):
+    """The reduced systems' LUs are cached within DENSE_CACHE_BYTES (newest kept): 20 set
+    combinations under a budget of three LUs keep at most three, and a dropped one is factored
+    again with the same result."""
+    rng = np.random.default_rng(5)
+    m = 20
+    system = random_system(m, 3, friction=0.7, extra_dofs=10)
+    solver = CondensedSolver(system, SolverOptions(updates=False))
+    W = solver.load_data_many(list(system.loads_numpy()))
+    monkeypatch.setattr(condensed, "DENSE_CACHE_BYTES", 3 * 8 * (2 * m) ** 2)
+    walk = random_walk(rng, m, np.zeros(m, dtype=bool), 20)
+    first = fresh(solver, walk[0], W)[0]
+    for codes in walk[1:]:
+        fresh(solver, codes, W)
+        assert sum(e[0].nbytes for e in solver._lu.values()) <= condensed.DENSE_CACHE_BYTES
+        assert list(solver._lu)[-1] == b"ref:" + codes.tobytes()
+    assert b"ref:" + walk[0].tobytes() not in solver._lu
+    n0 = solver.stats.dense_factorizations
+    np.testing.assert_array_equal(fresh(solver, walk[0], W)[0], first)
+    assert solver.stats.dense_factorizations == n0 + 1
+
+
 def test_singular_sets_are_reported_by_the_updates_too():
     """A node pair with identical rows in S makes some sets singular: both ways say so."""
     rng = np.random.default_rng(1)
