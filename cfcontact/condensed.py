@@ -108,26 +108,26 @@ def _trim_to_bytes(cache, nbytes, largest, limit=None):
         total -= nbytes(cache.popitem(last=False)[1])
 
 
-def _times(A, X):
-    """A @ X, column by column when X has 2-3 columns and A at least COLUMNWISE_MIN_ROWS rows."""
+def _by_columns(apply, rows, X):
+    """apply(X) (``rows`` rows), column by column when X has 2-3 columns and the operator at least
+    COLUMNWISE_MIN_ROWS rows."""
     c = X.shape[1] if X.ndim == 2 else 0
-    if c < 2 or c > 3 or A.shape[0] < COLUMNWISE_MIN_ROWS:
-        return A @ X
-    out = np.empty((A.shape[0], c))
+    if c < 2 or c > 3 or rows < COLUMNWISE_MIN_ROWS:
+        return apply(X)
+    out = np.empty((rows, c))
     for j in range(c):
-        out[:, j] = A @ X[:, j]
+        out[:, j] = apply(X[:, j])
     return out
+
+
+def _times(A, X):
+    """A @ X (:func:`_by_columns`)."""
+    return _by_columns(A.__matmul__, A.shape[0], X)
 
 
 def _lu_solve(lu, piv, B, trans=0):
-    """getrs(lu, piv, B) (``trans``: with the transpose), column by column as :func:`_times`."""
-    c = B.shape[1] if B.ndim == 2 else 0
-    if c < 2 or c > 3 or lu.shape[0] < COLUMNWISE_MIN_ROWS:
-        return _getrs(lu, piv, B, trans=trans)[0]
-    out = np.empty(B.shape)
-    for j in range(c):
-        out[:, j] = _getrs(lu, piv, B[:, j], trans=trans)[0]
-    return out
+    """getrs(lu, piv, B) (``trans``: with the transpose; :func:`_by_columns`)."""
+    return _by_columns(lambda Y: _getrs(lu, piv, Y, trans=trans)[0], lu.shape[0], B)
 
 
 @dataclass

@@ -735,8 +735,6 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
     g = first.g
     tv = np.broadcast_to(first.ind_tv, (3 * m,))
     near = np.abs(g) <= 4.0 * tv + 256.0 * _alpha_rounding(a_star, first.dg)
-    if np.count_nonzero(near) < TABLEAU_MIN_NODES:  # fewer indicators than nodes needed (most points)
-        return None
     nodes = np.unique(np.flatnonzero(near) % m)
     if nodes.size < TABLEAU_MIN_NODES:
         return None
