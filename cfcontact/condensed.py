@@ -74,6 +74,29 @@ NATIVE_MAX_DOFS = 2000
 #: S from MUMPS' Schur complement is kept only when it agrees with one solve with K to this
 #: (relative) on a probe vector; else it is formed by solves.
 SCHUR_CHECK_RTOL = 1e-11
+#: Iterative refinement of the solves with K, residuals in double-double arithmetic
+#: (:class:`cfcontact.linalg.ExactResidual`): at set-up one probe solve K x = B^T v is refined,
+#: and when its first correction changes B x by more than this (relative), every solve that
+#: forms S, w or u is refined (SolverOptions.refine: None), S by a low-rank correction
+#: (:meth:`CondensedSolver._corrected`).  On a 20 x 1 strip (m = 1000) a solve with MUMPS' LU of
+#: K is off by 2.7e-10 in B x (3.3e-9 at m = 2000), one step leaves 8e-17; residuals in double
+#: precision do not converge (corrections stay at 5e-10): the error is K's condition number
+#: times the rounding unit, which only a more precise residual removes (x87 extended precision
+#: leaves 1.5e-13, which the path's points show as violations of 1e-9).  Below this threshold
+#: (the seed-sized models: 6e-12 and 9e-12) the solves are accurate enough and refinement is not
+#: worth its set-up cost.
+REFINE_RTOL = 1e-10
+#: Refinement steps are taken until a correction is below this (relative, in B x) or stops
+#: shrinking tenfold, at most REFINE_MAX_STEPS; a probe that still needs more (K too
+#: ill-conditioned for refinement to contract) is logged as a warning.
+REFINE_TARGET = 1e-14
+REFINE_MAX_STEPS = 3
+#: The double-double residuals of many columns go in blocks of at most this many entries.
+REFINE_BLOCK_ENTRIES = 4_000_000
+#: S's correction to the accuracy of refined solves (:meth:`CondensedSolver._corrected`): random
+#: columns per round, and the largest rank tried before S is formed by solves instead.
+CORRECTION_BLOCK = 16
+CORRECTION_MAX_RANK = 256
 
 
 _getrf, _getrs = sla.lapack.dgetrf, sla.lapack.dgetrs  # LAPACK directly: less overhead per branch
@@ -244,16 +267,36 @@ class CondensedSolver:
         S = self._schur_from_factor() if self._schur_dofs is not None else None
         if S is None and schur:
             raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
-        if S is not None and not schur and not self._schur_accurate(S):
-            S = None  # (a slender or stiff-contrast model: the solves are accurate, the Schur complement not)
+        self._K_exact = None  # K's local rows for the refinement's residuals (linalg.ExactResidual)
+        #: steps of iterative refinement applied to every solve with K (see REFINE_RTOL), and the
+        #: relative correction of B x that the first step made on the set-up's probe solve (None:
+        #: no probe)
+        self.refine_steps, self.solve_error, self._correction_rtol = 0, None, None
+        #: rank of the correction that made S as accurate as refined solves (0: none needed)
+        self.correction_rank = 0
+        if S is not None:
+            self._probe_refinement()
+            if self.refine_steps:
+                S = self._corrected(S, required=bool(schur))
+            if S is not None and not schur and not self._schur_accurate(S):
+                S = None  # (a slender or stiff-contrast model: the solves are accurate, the Schur complement not)
         #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs), "forward"
         #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
         self.condensation = "schur" if S is not None else "solves"
-        if S is None and self.k_factorization == "cholesky/petsc" and store_columns is not False:
-            S = self._condense_forward()
-            if S is not None:
-                self.condensation = "forward"
-        self.S = S if S is not None else self._schur()
+        if S is None:
+            if self.k_factorization == "cholesky/petsc" and store_columns is not False:
+                S = self._condense_forward()  # (checks K's regularity first: a clear error if singular)
+                if S is not None:
+                    self.condensation = "forward"
+            if S is None:
+                S = self._schur()
+            if self.solve_error is None:
+                self._probe_refinement()
+            if self.refine_steps:
+                S = self._corrected(S, required=True)
+        if self.refine_steps:
+            self._loads.clear()  # w1, w2 of the condensation came from unrefined solves
+        self.S = S
         #: S^T, C-ordered: its rows are S's columns (S lam over few non-zero lam by rows); S itself
         #: when S is exactly symmetric, else a copy, 2m x 2m more memory (S by solves is not
         #: symmetrized, see :meth:`_schur`)
@@ -267,7 +310,7 @@ class CondensedSolver:
         on a 30 x 1 strip of m = 1500 contact nodes.)"""
         rng = np.random.default_rng(12345)
         v = rng.standard_normal(2 * self.m)
-        x = linalg.concat_ranks(self.comm, self._ksolve(self.B_local.T @ v))
+        x = linalg.concat_ranks(self.comm, self._ksolve_refined(self.B_local.T @ v))
         ref = self.B @ x
         err = np.abs(S @ v - ref).max() / max(np.abs(ref).max(), 1e-300)
         if err > SCHUR_CHECK_RTOL:
@@ -326,6 +369,119 @@ class CondensedSolver:
                                       f"is K singular?")
         self.stats.linear_solves += 1
         return np.array(self._x.getArray(readonly=True), copy=True)
+
+    # ------------------------------------------------- iterative refinement
+    def _probe_refinement(self):
+        """Set refine_steps, solve_error and the tolerance of S's correction from :meth:`_probe`."""
+        self.refine_steps, self.solve_error, floor = self._probe()
+        self._correction_rtol = max(REFINE_TARGET, 10 * floor) if self.refine_steps else None
+
+    def _probe(self):
+        """(steps, error, floor): refine one solve K x = B^T v (v fixed, random) with residuals in
+        double-double arithmetic; error = the first correction's share of B x, steps = how many
+        corrections it takes to get below REFINE_TARGET or to stop shrinking (0 when the first is
+        below REFINE_RTOL: no refinement), floor = the correction after those steps; or as
+        SolverOptions.refine says."""
+        opt = self.options.refine
+        if opt is False or self.m == 0:
+            return 0, None, None
+        b = self.B_local.T @ np.random.default_rng(12345).standard_normal(2 * self.m)
+        x = self._ksolve(b)
+        scale = max(np.abs(self._allreduce(self.B_local @ x)).max(), 1e-300)
+        corrections = []
+        while True:
+            d = self._ksolve(self._kresidual(b, x))
+            x += d
+            c = np.abs(self._allreduce(self.B_local @ d)).max() / scale
+            if not corrections and c <= REFINE_RTOL and not opt:
+                return 0, c, None
+            if corrections and (c <= REFINE_TARGET or c > 0.1 * corrections[-1]):
+                break  # after len(corrections) steps the error is c
+            corrections.append(c)
+            if len(corrections) > REFINE_MAX_STEPS:
+                log.warning("iterative refinement of solves with K does not contract (corrections %s of B x): K is "
+                            "too ill-conditioned for double precision",
+                            ", ".join(f"{c:.1e}" for c in corrections))
+                break
+        steps = min(len(corrections), REFINE_MAX_STEPS)
+        log.info("solves with K are off by %.1e (relative, in B x): refined with %d step(s) of double-double "
+                 "residuals to %.1e", corrections[0], steps, c)
+        return steps, corrections[0], c
+
+    def _kresidual(self, b: np.ndarray, x_local: np.ndarray) -> np.ndarray:
+        """b - K x (local rows; x: local rows of one vector or of the columns of a matrix),
+        computed in double-double arithmetic and rounded to double."""
+        if self._K_exact is None:
+            self._K_exact = linalg.ExactResidual(self.K_local)
+        return self._K_exact(b, linalg.concat_ranks(self.comm, x_local))
+
+    def _ksolve_refined(self, rhs_local: np.ndarray) -> np.ndarray:
+        """K^-1 rhs (local rows of one vector), refined with self.refine_steps steps."""
+        x = self._ksolve(rhs_local)
+        for _ in range(self.refine_steps):
+            x += self._ksolve(self._kresidual(rhs_local, x))
+        return x
+
+    def _refine_columns(self, X: np.ndarray, rhs) -> np.ndarray:
+        """X = K^-1 rhs (local rows, nloc x k), corrected in place by self.refine_steps steps,
+        in blocks of columns; ``rhs``: the right-hand sides (nloc x k).  Collective under MPI."""
+        if not self.refine_steps or X.shape[1] == 0:
+            return X
+        k = X.shape[1]
+        block = max(1, REFINE_BLOCK_ENTRIES // max(self.n, 1))  # self.n: the same on every rank
+        for c0 in range(0, k, block):
+            sl = slice(c0, min(k, c0 + block))
+            for _ in range(self.refine_steps):
+                X[:, sl] += self._ksolve_dense(np.asfortranarray(self._kresidual(rhs[:, sl], X[:, sl])))
+        return X
+
+    def _s_exact(self, V: np.ndarray) -> np.ndarray:
+        """B K^-1 B^T V (2m x k) by refined solves."""
+        rhs = np.asfortranarray(self.B_local.T @ V)
+        return self._allreduce(np.ascontiguousarray(self.B_local @ self._refine_columns(self._ksolve_dense(rhs), rhs)))
+
+    def _corrected(self, S: np.ndarray, required: bool) -> Optional[np.ndarray]:
+        """S (from unrefined solves, forward substitutions or the Schur complement) corrected to
+        the accuracy of refined solves.  Its error E = B K^-1 B^T - S lies, to rounding, in the
+        span of a few vectors (those of K's softest modes, where its condition number acts: on
+        a 20 x 1 strip, m = 1000, E's singular values fall from 6e-8 to 2e-14 of |S| in eight),
+        so a randomized range finder catches it: Y = E Omega for CORRECTION_BLOCK random
+        columns, Q = orth(Y), S += Q Q^T E (Q^T E = (B K^-1 B^T Q)^T - Q^T S, S exact being
+        symmetric), repeated until new random columns see no error beyond what refined solves
+        resolve (REFINE_TARGET, or ten times the probe's remaining correction; that check is
+        the last round's Y).  Cost: about 2 CORRECTION_BLOCK refined solves per round,
+        instead of 2m.  S is corrected in place.  None when the error is not caught by
+        CORRECTION_MAX_RANK columns (then the caller forms S otherwise), or S with a warning when
+        ``required``."""
+        m2 = S.shape[0]
+        rng = np.random.default_rng(20261202)
+        Q = np.zeros((m2, 0))
+        while True:
+            k = min(CORRECTION_BLOCK, m2)
+            Om = rng.standard_normal((m2, k))
+            SOm = self._s_exact(Om)
+            Y = SOm - S @ Om
+            err = np.abs(Y).max() / max(np.abs(SOm).max(), 1e-300)
+            if err <= self._correction_rtol:
+                self.correction_rank = Q.shape[1]
+                log.info("S corrected by rank %d: %.1e (relative) from refined solves on %d random vectors",
+                         Q.shape[1], err, k)
+                return S
+            if Q.shape[1] + k > min(CORRECTION_MAX_RANK, m2):
+                msg = (f"S is off by {err:.1e} (relative) from refined solves after a correction of rank "
+                       f"{Q.shape[1]}")
+                if required:
+                    log.warning("%s; kept as it is", msg)
+                    self.correction_rank = Q.shape[1]
+                    return S
+                log.info("%s; S is formed by solves instead", msg)
+                return None
+            Y -= Q @ (Q.T @ Y)
+            Qn = np.linalg.qr(Y)[0]
+            Qn -= Q @ (Q.T @ Qn)
+            Qn = np.linalg.qr(Qn)[0]
+            S += Qn @ (self._s_exact(Qn).T - Qn.T @ S)
+            Q = np.hstack([Q, Qn])
 
     def _ksolve_dense(self, rhs: np.ndarray) -> np.ndarray:
         """K^-1 applied to the columns of ``rhs`` (local rows, nloc x k): one multi-RHS solve (MatMatSolve)."""
@@ -487,7 +643,7 @@ class CondensedSolver:
         for g, w in self._loads:
             if g is f or np.array_equal(g, f):
                 return self._gap_shifted(w)
-        w = self._allreduce(self.B_local @ self._ksolve(f[self.r0:self.r1]))
+        w = self._allreduce(self.B_local @ self._ksolve_refined(f[self.r0:self.r1]))
         self._loads.append((np.array(f, copy=True), w))
         if len(self._loads) > 4:
             self._loads.pop(0)
@@ -504,7 +660,8 @@ class CondensedSolver:
                     break
         todo = [j for j in range(len(fs)) if j not in cached]
         if todo:
-            X = self._ksolve_dense(np.column_stack([fs[j][self.r0:self.r1] for j in todo]))
+            rhs = np.column_stack([fs[j][self.r0:self.r1] for j in todo])
+            X = self._refine_columns(self._ksolve_dense(rhs), rhs)
             Wn = self._allreduce(np.ascontiguousarray(self.B_local @ X))
             for c, j in enumerate(todo):
                 cached[j] = Wn[:, c].copy()
@@ -682,6 +839,7 @@ class CondensedSolver:
         else:
             self._lu.move_to_end(key)
         lu, piv, rows, slip, coef, support = entry
+        imposed = self.imposed_rows(codes)
         extra = self._lu_extra.get(key)
         if extra is None or extra[0] is not lu:  # the rows of S on the support, for S lam
             if len(self._lu_extra) > 2 * max(64, self.options.cache) or (
@@ -695,7 +853,7 @@ class CondensedSolver:
         m, c, S = self.m, W.shape[1], self.S
         if not rows.size:
             L = np.zeros((2 * m, c))
-            G = self._ind(L, W, np.zeros_like(W))
+            G = self._ind(L, W, np.zeros_like(W), imposed)
             return (L, G, np.zeros_like(G)) if refine else (L, G)
         Wr = W[rows]
 
@@ -715,18 +873,31 @@ class CondensedSolver:
             L = L + D
             SL = SL + SD
         self.stats.dense_solves += (1 + steps) * c
-        G = self._ind(L, W, SL)
+        G = self._ind(L, W, SL, imposed)
         if not refine:
             return L, G
-        return L, G, np.abs(self._ind(D, np.zeros_like(W), SD))
+        return L, G, np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
 
-    def _ind(self, lam, w, Slam):
-        """The indicators (a, bp, bm) stacked (3m x k) from lam, w and S lam."""
+    def _ind(self, lam, w, Slam, imposed=None):
+        """The indicators (a, bp, bm) stacked (3m x k) from lam, w and S lam.  ``imposed``: the
+        rows of B u = w - S lam that the branch's own equations set to zero (:meth:`imposed_rows`:
+        closed nodes' gaps, sticking nodes' slips); they are taken as exactly zero instead of the
+        rounding of w - S lam, which is of the size of w: on a slender body the data w are
+        thousands of times the multipliers' scale (over rho), and that rounding would blur the
+        multipliers' own indicators (a closed node's lam_n, a sticking node's lam_t -+ F lam_n)."""
         m = self.m
-        g = lam + self.system.rho * (w - Slam)
+        r = w - Slam
+        if imposed is not None:
+            r[imposed] = 0.0
+        g = lam + self.system.rho * r
         F_lam_n = self.F[:, None] * lam[:m]
         b = g[m:]
         return np.concatenate((g[:m], b - F_lam_n, b + F_lam_n))
+
+    def imposed_rows(self, codes) -> np.ndarray:
+        """The rows of B u (2m booleans) that the branch of the state ``codes`` imposes as
+        equations: N u = g at its closed nodes, T u = 0 at its sticking ones."""
+        return _imposed(_node_types(self, np.asarray(codes, dtype=np.int8)))
 
     @property
     def use_updates(self) -> bool:
@@ -828,7 +999,7 @@ class CondensedSolver:
 
     def displacement(self, f: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """u = K^-1 (f - B^T lam), whole on every rank (one sparse solve)."""
-        u_loc = self._ksolve(f[self.r0:self.r1] - self.B_local.T @ lam)
+        u_loc = self._ksolve_refined(f[self.r0:self.r1] - self.B_local.T @ lam)
         return linalg.concat_ranks(self.comm, u_loc)
 
     def displacements(self, lams: np.ndarray, alphas) -> np.ndarray:
@@ -859,7 +1030,7 @@ class CondensedSolver:
             a = alphas[sl]
             rhs = np.outer(f1l, 1.0 - a) + np.outer(f2l, a)
             rhs -= BT @ lams[:, sl]
-            U = self._ksolve_dense(np.asfortranarray(rhs))
+            U = self._refine_columns(self._ksolve_dense(np.asfortranarray(rhs)), rhs)
             out[:, sl] = linalg.concat_ranks(self.comm, U)
         return out
 
@@ -913,6 +1084,13 @@ def _node_types(solver, codes):
     t_s = (codes == _STICK) & ~solver.no_tangent
     coef = solver.F * _SLIP_SIGN[codes]
     return closed, t_s, coef
+
+
+def _imposed(types) -> np.ndarray:
+    """The rows of B u (2m) that are equations of the branch whose node types (_node_types) are
+    given: N u = g at closed nodes, T u = 0 at sticking ones."""
+    closed, t_s, _ = types
+    return np.concatenate([closed, t_s])
 
 
 def _node_rows(m, nodes):
@@ -1349,6 +1527,7 @@ class _Updater:
         codes = np.asarray(codes, dtype=np.int8)
         types = self._types(codes)
         closed, t_s, coef = types
+        imposed = _imposed(types)
         if self.codes0 is None:
             self.rebase(codes)
         closed0, t_s0, coef0 = self.types0
@@ -1392,7 +1571,7 @@ class _Updater:
                 if step and size > 0.25 * sizes[-2]:
                     ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
                     break
-            Eg = Eg_scale * np.abs(s._ind(applied[0], np.zeros_like(W), applied[1]))
+            Eg = Eg_scale * np.abs(s._ind(applied[0], np.zeros_like(W), applied[1], imposed))
             reason = "refine"
             if ok and D.size:  # accurate enough for the path's tie tests (a fresh LU's accuracy)?
                 size = np.abs(L).max(axis=0, initial=0.0) + self.rho * np.abs(W).max(axis=0, initial=0.0)
@@ -1406,7 +1585,7 @@ class _Updater:
         s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
         s.stats.dense_updates += 1
         self.updates += 1
-        G = s._ind(L, W, SL)
+        G = s._ind(L, W, SL, imposed)
         if not refine:
             return L, G
         return L, G, Eg

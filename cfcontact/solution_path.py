@@ -263,6 +263,39 @@ class SolutionPath:
             self._Y[b.index] = ref_form((Y1, Y2))
         return b
 
+    def end_branch_at(self, branch, alpha, lam, indicators=None):
+        """Make a lazy branch pass through (alpha, lam) (and the indicators, 3m, when given): its
+        multipliers and indicators become the chord from its reference point to there.  The
+        exact method passes the next branch's entry point, a fresh solve at the transition, so
+        that the branch's exit point is not extrapolated from its entry along rates that carry
+        its rounding (on a slender body a steep slip rate, 1e13 per unit alpha, put a stored
+        exit 47 N off its own vanishing condition); every linear condition that holds at both
+        ends (the branch's equations) holds along the chord."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        if b not in self._lam:
+            return
+        a_r, lr, _ = self._lam[b]
+        da = float(alpha) - a_r
+        if da == 0.0:
+            return
+        self._lam[b] = (a_r, lr, (np.asarray(lam, dtype=float) - lr) / da)
+        if indicators is not None and b in self._ind and self._ind[b][0] == a_r:
+            gr = self._ind[b][1]
+            self._ind[b] = (a_r, gr, (np.asarray(indicators, dtype=float) - gr) / da)
+
+    def start_branch_at(self, branch, alpha, lam, indicators=None):
+        """Make a lazy branch referenced at ``alpha`` start from (alpha, lam) (and the indicators,
+        3m): its reference values are replaced, its rates kept.  The exact method passes the
+        previous branch's exit where that locates the transition point more precisely than the
+        new branch's own solve (see ``exact._precise_side``)."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        if b not in self._lam or self._lam[b][0] != float(alpha):
+            return
+        a_r, _, dl = self._lam[b]
+        self._lam[b] = (a_r, np.array(lam, dtype=float), dl)
+        if indicators is not None and b in self._ind and self._ind[b][0] == a_r:
+            self._ind[b] = (a_r, np.array(indicators, dtype=float), self._ind[b][2])
+
     def add_point(self, branch: Branch, alpha, y=None) -> int:
         """Append a point; y=None: the point of ``branch`` at alpha (formed lazily on a lazy branch)."""
         if y is None and branch.index not in self._Y:

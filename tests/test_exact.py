@@ -321,6 +321,9 @@ def test_condensed_and_exact_under_mpi(run_mpi, tmp_path):
         assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
     assert got["nsol"] == ref["nsol"]
     assert got["factorizations"] == 1
+    assert got["refine_steps"] >= 1 and ref["refine_steps"] >= 1
+    assert got["refined_kinds"] == ref["refined_kinds"] == ref["kinds"]
+    assert np.allclose(got["refined_alphas"], ref["refined_alphas"], rtol=0, atol=1e-10)
 
 
 # -------------------------------------------------------------- property-based

@@ -1,0 +1,192 @@
+"""Accuracy of the exact method on slender bodies.
+
+Iterative refinement of the condensed backend's solves with K: the probe that decides it, S
+corrected by a low-rank update, w and u refined; the reference is B K^-1 B^T from SciPy's SuperLU
+(not PETSc), refined; the double-double residual itself is checked against exact rational
+arithmetic.  The branches' indicators where a branch imposes a gap or a slip, and the transition
+points stored from the side that locates them."""
+
+import logging
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import cfcontact
+import cfcontact.demo_models
+from cfcontact import condensed, linalg
+from cfcontact.condensed import CondensedSolver
+from cfcontact.models import two_blocks
+from cfcontact.ssnm import SolverOptions, verify
+
+
+def slender(friction=0.3):
+    """Two stacked 60 x 1 strips, 150 x 2 triangles per body (n = 1800, m = 150), clamped at the
+    left; body 1's top pressed down, shear on the free edges."""
+    t1 = {"top1": (2e6, -8e6), "right1": (1e6, 3e6), "bottom2": (-1e6, 5e6), "right2": (-2e6, 1e6)}
+    t2 = {"top1": (-3e6, -6e6), "right1": (-1e6, -2e6), "bottom2": (2e6, 2e6), "right2": (1e6, 4e6)}
+    return two_blocks(nx=150, ny=2, length=60.0, height=1.0, cell="triangle", friction=friction,
+                      tractions1=t1, tractions2=t2)
+
+
+@pytest.fixture(scope="module")
+def strip():
+    return slender()
+
+
+def refined_solver(K):
+    """x = K^-1 b by SciPy's SuperLU, refined twice with double-double residuals."""
+    lu, residual = spla.splu(sp.csc_matrix(K)), linalg.ExactResidual(K)
+
+    def solve(b):
+        x = lu.solve(b)
+        for _ in range(2):
+            x += lu.solve(residual(b, x))
+        return x
+
+    return solve
+
+
+def reference(system):
+    """(S, w1, w2): B K^-1 (B^T, f1, f2) by refined SuperLU solves."""
+    N, T = system.contact_maps()
+    B = sp.vstack([N, T]).toarray()
+    X = refined_solver(linalg.gather_mat(system.K))(np.column_stack([B.T, *system.loads_numpy()]))
+    BX = B @ X
+    return BX[:, :-2], BX[:, -2], BX[:, -1]
+
+
+def test_exact_residual_equals_rational_arithmetic():
+    """b - A x with cancellation (b = A x up to 1e-12 of |A| |x|): double-double against
+    Fractions, where double loses digits."""
+    rng = np.random.default_rng(3)
+    A = sp.random(40, 40, density=0.25, random_state=4, format="csr") * 1e6 + sp.eye(40) * 1e6
+    x = rng.standard_normal((40, 3)) * 1e3
+    b = A @ x + rng.standard_normal((40, 3)) * 1e-3
+    Ad = A.toarray()
+    exact = np.array([[float(Fraction(b[i, k]) - sum(Fraction(Ad[i, j]) * Fraction(x[j, k]) for j in range(40)))
+                       for k in range(3)] for i in range(40)])
+    r = linalg.ExactResidual(A)(b, x)
+    assert np.abs(r - exact).max() <= 2.3e-16 * np.abs(exact).max()
+    assert np.abs(linalg.ExactResidual(A)(b[:, 1], x[:, 1]) - exact[:, 1]).max() <= 2.3e-16 * np.abs(exact).max()
+    plain = b - A @ x
+    assert np.abs(plain - exact).max() > 1e-6 * np.abs(exact).max()  # what it is for
+
+
+def rel(a, b):
+    return np.abs(a - b).max() / np.abs(b).max()
+
+
+def test_probe_turns_refinement_on_for_a_slender_strip_only(strip):
+    solver = CondensedSolver(strip)
+    assert solver.refine_steps >= 1 and solver.solve_error > condensed.REFINE_RTOL
+    assert solver.correction_rank > 0
+    demo = CondensedSolver(cfcontact.demo_models.build_demo(friction=0.6))
+    assert demo.refine_steps == 0 and demo.solve_error < condensed.REFINE_RTOL and demo.correction_rank == 0
+    off = CondensedSolver(strip, SolverOptions(refine=False))
+    assert off.refine_steps == 0 and off.solve_error is None
+
+
+@pytest.mark.parametrize("schur", [None, True])
+def test_corrected_S_and_refined_w_match_a_refined_reference(strip, schur):
+    S_ref, w1_ref, w2_ref = reference(strip)
+    plain = CondensedSolver(strip, SolverOptions(refine=False), schur=schur)
+    solver = CondensedSolver(strip, schur=schur)
+    assert solver.condensation == plain.condensation == ("schur" if schur else "forward")
+    assert rel(plain.S, S_ref) > 1e-11  # what the refinement is for: the test can fail
+    assert rel(solver.S, S_ref) < 1e-13
+    f1, f2 = strip.loads_numpy()
+    assert rel(plain.load_data(f1), w1_ref) > 1e-11
+    assert rel(solver.load_data(f1), w1_ref) < 1e-13 and rel(solver.load_data(f2), w2_ref) < 1e-13
+
+
+def test_refined_path_points_solve_the_true_problem(strip):
+    """Points of the exact path, checked with u formed from their multipliers by the reference
+    solve (SuperLU, refined): with refinement they satisfy (1)-(3) of the true K; without it
+    their multipliers carry S's error (K's condition number times the rounding unit), which
+    their own u hides (u = K^-1 (f - B^T lam) by the same inaccurate solve: consistent)."""
+    u_true = refined_solver(linalg.gather_mat(strip.K))
+    n, worst_true, worst_own = strip.n, {}, {}
+    for refine in (None, False):
+        solver = CondensedSolver(strip, SolverOptions(refine=refine))
+        path = cfcontact.trace_path(strip, 0.0, 1.0, method="exact", solver=solver)
+        assert path.status == "completed", path.events
+        points = list(path.iter_points())
+        worst_own[refine] = max(verify(strip, y, a, solver=solver).worst() for a, y in points)
+        worst_true[refine] = max(
+            verify(strip, np.concatenate([u_true(strip.load(a) - solver.B.T @ y[n:]), y[n:]]), a, solver=solver).worst()
+            for a, y in points)
+    assert worst_own[None] < 1e-11 and worst_true[None] < 1e-11  # measured 2.2e-13 and 2.2e-13
+    assert worst_true[False] > 1e3 * worst_true[None]  # 4.1e-8
+
+
+def test_correction_that_does_not_converge_is_reported(strip, monkeypatch, caplog):
+    monkeypatch.setattr(condensed, "CORRECTION_MAX_RANK", 8)  # fewer than one round's columns
+    with caplog.at_level(logging.INFO, logger="cfcontact.condensed"):
+        solver = CondensedSolver(strip)  # forward substitutions: kept, with a warning
+    assert solver.condensation == "forward" and solver.correction_rank == 0
+    assert any(r.levelno == logging.WARNING and "after a correction of rank 0" in r.message for r in caplog.records)
+
+
+def test_refine_true_on_a_well_conditioned_model_moves_it_by_its_rounding_only():
+    """The main demo's solves are off by ~6e-12 (below REFINE_RTOL: no refinement by default);
+    forced, refinement moves S and the transitions by about that much."""
+    system = cfcontact.demo_models.build_demo(friction=0.6)
+    a = CondensedSolver(system)
+    b = CondensedSolver(system, SolverOptions(refine=True))
+    assert a.refine_steps == 0 and b.refine_steps == 1
+    assert 0 < rel(b.S, a.S) < 1e-10
+    pa = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=a)
+    pb = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=b)
+    assert [t.kind for t in pa.transitions] == [t.kind for t in pb.transitions]
+    assert [t.alpha for t in pa.transitions] == pytest.approx([t.alpha for t in pb.transitions], rel=1e-9)
+
+
+@pytest.mark.parametrize("updates", [False, True])
+def test_branch_indicators_read_the_multipliers_where_the_branch_imposes_gap_or_slip(updates):
+    """A closed node's a = lam_n and a sticking node's bp, bm = lam_t -+ F lam_n exactly (their
+    B u rows are equations of the branch: zero, not the rounding of w - S lam); the other
+    indicators as lam + rho (w - S lam) from a dense reference."""
+    system = slender(friction=0.8)
+    solver = CondensedSolver(system, SolverOptions(updates=updates))
+    m, rho, F = system.m, system.rho, 0.8
+    W = solver.load_data_many(system.loads_numpy())
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        codes = rng.integers(0, 4, m).astype(np.int8)
+        L, G, _ = solver.branch_data(W, f"random {k}".encode(), codes, refine=True)
+        closed, stick = codes != 0, codes == 1
+        assert np.array_equal(G[:m][closed], L[:m][closed])
+        assert np.array_equal(G[m:2 * m][stick], L[m:][stick] - F * L[:m][stick])
+        assert np.array_equal(G[2 * m:][stick], L[m:][stick] + F * L[:m][stick])
+        ref = L + rho * (W - solver.S @ L)
+        scale = np.abs(ref).max()
+        assert np.abs(G[:m][~closed] - ref[:m][~closed]).max() <= 1e-9 * scale
+        slip = codes >= 2
+        assert np.abs(G[m:2 * m][slip] - (ref[m:] - F * L[:m])[slip]).max() <= 1e-9 * scale
+
+
+def test_transition_points_are_stored_from_the_side_that_locates_them():
+    """Where a node closes or sticks, the old branch ends on the new one's entry (its gap or slip
+    is imposed there, exactly zero); where it opens or starts slipping, the new branch starts at
+    the old one's exit (whose vanishing indicator was a multiplier).  Both stored points are the
+    same, and every point meets (1)-(3)."""
+    from cfcontact.bench_stress import strip
+
+    system = strip(120, 30.0)
+    solver = CondensedSolver(system)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    assert path.status == "completed" and len(path.transitions) > 50
+    rank = {"open": 0, "slip+": 1, "slip-": 1, "stick": 2}
+    checked = 0
+    for t in path.transitions:
+        if len(t.changes) != 1 or rank[t.changes[0]["from"]] == rank[t.changes[0]["to"]]:
+            continue
+        a, b = path.branch_lam(t.from_branch, t.alpha), path.branch_lam(t.to_branch, t.alpha)
+        assert np.abs(a - b).max() <= 1e-14 * np.abs(b).max(), t
+        checked += 1
+    assert checked > 50
+    worst = max(verify(system, y, a, solver=solver).worst() for a, y in path.iter_points())
+    assert worst < 1e-10
