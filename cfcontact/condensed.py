@@ -214,6 +214,7 @@ class CondensedSolver:
         self._F0 = self.F == 0.0
         self.no_tangent = np.asarray(system.no_tangent, dtype=bool)
         self._updater = None  # factorization updates of the exact method's branches (_Updater)
+        self._imposed_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()  # imposed_rows by state
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
@@ -377,24 +378,30 @@ class CondensedSolver:
         self._correction_rtol = max(REFINE_TARGET, 10 * floor) if self.refine_steps else None
 
     def _probe(self):
-        """(steps, error, floor): refine one solve K x = B^T v (v fixed, random) with residuals in
-        double-double arithmetic; error = the first correction's share of B x, steps = how many
-        corrections it takes to get below REFINE_TARGET or to stop shrinking (0 when the first is
-        below REFINE_RTOL: no refinement), floor = the correction after those steps; or as
-        SolverOptions.refine says."""
+        """(steps, error, floor): refine one solve K x = B^T v (v fixed, random); error = the first
+        correction's share of B x (with a residual in double precision: when it is below
+        REFINE_RTOL, no refinement, steps = 0), steps = how many corrections with double-double
+        residuals it takes to get below REFINE_TARGET or to stop shrinking, floor = the
+        correction after those steps; or as SolverOptions.refine says."""
         opt = self.options.refine
         if opt is False or self.m == 0:
             return 0, None, None
         b = self.B_local.T @ np.random.default_rng(12345).standard_normal(2 * self.m)
         x = self._ksolve(b)
         scale = max(np.abs(self._allreduce(self.B_local @ x)).max(), 1e-300)
+        if not opt:
+            # first a correction from the residual in double precision: it cannot resolve less
+            # than the solve's own error, but it is of that order, which is all the decision needs
+            # (and it spares the seed-sized models the double-double residual's set-up)
+            r = b - self.K_local @ linalg.concat_ranks(self.comm, x)
+            c = np.abs(self._allreduce(self.B_local @ self._ksolve(r))).max() / scale
+            if c <= REFINE_RTOL:
+                return 0, c, None
         corrections = []
         while True:
             d = self._ksolve(self._kresidual(b, x))
             x += d
             c = np.abs(self._allreduce(self.B_local @ d)).max() / scale
-            if not corrections and c <= REFINE_RTOL and not opt:
-                return 0, c, None
             if corrections and (c <= REFINE_TARGET or c > 0.1 * corrections[-1]):
                 break  # after len(corrections) steps the error is c
             corrections.append(c)
@@ -896,8 +903,17 @@ class CondensedSolver:
 
     def imposed_rows(self, codes) -> np.ndarray:
         """The rows of B u (2m booleans) that the branch of the state ``codes`` imposes as
-        equations: N u = g at its closed nodes, T u = 0 at its sticking ones."""
-        return _imposed(_node_types(self, np.asarray(codes, dtype=np.int8)))
+        equations: N u = g at its closed nodes, T u = 0 at its sticking ones (kept for the last
+        few states: a transition asks for both of its branches' more than once)."""
+        codes = np.asarray(codes, dtype=np.int8)
+        key = codes.tobytes()
+        cache = self._imposed_cache
+        rows = cache.get(key)
+        if rows is None:
+            rows = cache[key] = _imposed(_node_types(self, codes))
+            if len(cache) > 16:
+                cache.popitem(last=False)
+        return rows
 
     @property
     def use_updates(self) -> bool:

@@ -210,10 +210,10 @@ class SolverOptions:
     cache: how many factorizations of J(Z) to keep (one per inactive-set combination).
     updates: condensed backend, exact method: solve neighbouring branches by updates of one kept
         factorization (True), by a fresh factorization each (False), or decide by size (None).
-    refine: condensed backend: iterative refinement of the solves with K that form S, w and u,
-        with residuals in extended precision (True), none (False), or where a probe solve at
-        set-up shows that K's condition number costs digits (None; slender bodies, see
-        ``condensed.REFINE_RTOL``).
+    refine: condensed backend: iterative refinement of the solves with K that form w and u
+        (and a correction of S to match), with residuals in double-double arithmetic (True),
+        none (False), or where a probe solve at set-up shows that K's condition number costs
+        digits (None; slender bodies, see ``condensed.REFINE_RTOL``).
     """
 
     prefix: str = "cfcontact_"
