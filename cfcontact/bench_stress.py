@@ -267,7 +267,13 @@ def _row_text(r):
             f"{r.get('friction', 0):>5g} {f('assembly_time')} {f('factorization_time')} {f('condensation_time')} "
             f"{f('path_time')} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
             f"{r.get('dense_updates', '-'):>7} {r.get('refactorizations', '-'):>6} {f('peak_rss_gib', 6)} "
-            f"{r.get('worst_residual', float('nan')):>9.1e} {f('ratio', 6, 1)} {r.get('status', r.get('stage')):>11}")
+            f"{r.get('worst_residual') if isinstance(r.get('worst_residual'), float) else float('nan'):>9.1e} "
+            f"{f('ratio', 6, 1)} {_status_text(r):>11}")
+
+
+def _status_text(r) -> str:
+    """A row's status, or the stage it reached, or how its worker failed (it may have reported nothing)."""
+    return str(r.get("status") or r.get("stage") or f"failed (rc {r.get('returncode')})")
 
 
 def table(rows) -> str:

@@ -165,3 +165,13 @@ def test_bench_runs_blas_single_threaded_unless_told(monkeypatch):
     with _blas_threads(machine):
         assert os.environ["OPENBLAS_NUM_THREADS"] == "2"
     assert machine["openblas_num_threads"] == "2"
+
+
+def test_a_worker_that_reported_nothing_prints_as_failed():
+    """A Part C/D worker that died before its first report (rc 1, no output) is a row, not a
+    formatting error: its status says how it failed."""
+    from cfcontact.bench_stress import _row_text
+
+    text = _row_text({"model": "strip", "kind": "uniform", "friction": 0.3, "returncode": 1, "stage": None,
+                      "worst_residual": None, "error": ""})
+    assert text.rstrip().endswith("nan      - failed (rc 1)")
