@@ -272,7 +272,7 @@ class CondensedSolver:
         #: steps of iterative refinement applied to every solve with K (see REFINE_RTOL), and the
         #: relative correction of B x that the first step made on the set-up's probe solve (None:
         #: no probe)
-        self.refine_steps, self.solve_error, self._correction_rtol = 0, None, None
+        self.refine_steps, self.solve_error, self._correction_rtol, self._probed = 0, None, None, False
         #: rank of the correction that made S as accurate as refined solves (0: none needed)
         self.correction_rank = 0
         if S is not None:
@@ -291,8 +291,7 @@ class CondensedSolver:
                     self.condensation = "forward"
             if S is None:
                 S = self._schur()
-            if self.solve_error is None:
-                self._probe_refinement()
+            self._probe_refinement()
             if self.refine_steps:
                 S = self._corrected(S, required=True)
         if self.refine_steps:
@@ -373,7 +372,11 @@ class CondensedSolver:
 
     # ------------------------------------------------- iterative refinement
     def _probe_refinement(self):
-        """Set refine_steps, solve_error and the tolerance of S's correction from :meth:`_probe`."""
+        """Set refine_steps, solve_error and the tolerance of S's correction from :meth:`_probe`
+        (once)."""
+        if self._probed:
+            return
+        self._probed = True
         self.refine_steps, self.solve_error, floor = self._probe()
         self._correction_rtol = max(REFINE_TARGET, 10 * floor) if self.refine_steps else None
 

@@ -290,7 +290,6 @@ class _CondensedData:
         self.w1, self.w2 = np.array(W[:, 0]), np.array(W[:, 1])
         self.dw = self.w2 - self.w1
         self.rho = solver.system.rho
-        self._free: dict = {}  # key -> which indicators read a free row of B u (3m booleans)
         self.WE = None  # perturbation data B K^-1 E (2m x J)
 
     def line(self, codes, key, alpha):
@@ -303,14 +302,9 @@ class _CondensedData:
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
         # B u rows are equations of the branch, exactly zero (CondensedSolver._ind)
-        free = self._free.get(key)
-        if free is None:
-            rows = ~self.solver.imposed_rows(codes)
-            m = rows.size // 2
-            free = np.concatenate([rows[:m], rows[m:], rows[m:]])
-            if len(self._free) > 64:
-                self._free.clear()
-            self._free[key] = free
+        rows = ~self.solver.imposed_rows(codes)
+        m = rows.size // 2
+        free = np.concatenate([rows[:m], rows[m:], rows[m:]])
         scale_v = np.abs(L[:, 0]).max(initial=0.0) + self.rho * np.abs(w).max(initial=0.0) * free
         scale_s = np.abs(L[:, 1]).max(initial=0.0) + self.rho * np.abs(self.dw).max(initial=0.0) * free
         solver = self.solver
@@ -946,9 +940,6 @@ def _add_branch(path, ln: _Line, s: int, **kw):
     return path.add_branch(ln.sets, s, Yr, dY, reference=ln.alpha, **kw)
 
 
-_OPEN_CODE, _STICK_CODE = STATE_NAMES.index("open"), STATE_NAMES.index("stick")
-
-
 def _precise_side(ctx, old: _Line, new: _Line) -> Optional[str]:
     """Which of two branches meeting at a transition point locates the point's displacements to
     the multipliers' precision ("old", "new"; None: neither, or the nodes disagree).  A node's
@@ -959,14 +950,12 @@ def _precise_side(ctx, old: _Line, new: _Line) -> Optional[str]:
     old one, whose vanishing indicator was a multiplier (lam_n, or lam_t -+ F lam_n)."""
     if not ctx.condensed:
         return None
-    no_tangent = ctx.data.solver.no_tangent
-    more = less = False
-    for i in (old.codes != new.codes).nonzero()[0].tolist():  # (usually one node)
-        # the node's imposed rows of B u on either branch: N u when closed, T u when sticking
-        a, b = int(old.codes[i]), int(new.codes[i])
-        before = int(a != _OPEN_CODE) + int(a == _STICK_CODE and not no_tangent[i])
-        after = int(b != _OPEN_CODE) + int(b == _STICK_CODE and not no_tangent[i])
-        more, less = more or after > before, less or after < before
+    imposed = ctx.data.solver.imposed_rows  # (cached per state: both branches' were just asked for)
+    before, after = imposed(old.codes), imposed(new.codes)
+    changed = (old.codes != new.codes).nonzero()[0]  # (usually one node)
+    m = old.codes.size
+    gain = (after[changed].astype(int) + after[m + changed]) - (before[changed].astype(int) + before[m + changed])
+    more, less = bool((gain > 0).any()), bool((gain < 0).any())
     if more == less:
         return None
     return "new" if more else "old"

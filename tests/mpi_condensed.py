@@ -20,22 +20,25 @@ system = random_system(4, 2, friction=1.7, extra_dofs=7)
 solver = CondensedSolver(system)
 full = DirNeuSolver(system)
 rng = np.random.default_rng(0)
-for _ in range(6):  # condensed == full J(Z) solve, also in parallel
-    Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
-    f = system.load(rng.uniform(0, 1))
-    yc, yf = solver.solve(Z, f), full.solve(Z, f)
-    assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+
+
+def check_against_full(condensed, count):
+    """condensed == full J(Z) solve for random sets and loads, also in parallel"""
+    for _ in range(count):
+        Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
+        f = system.load(rng.uniform(0, 1))
+        yc, yf = condensed.solve(Z, f), full.solve(Z, f)
+        assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+
+
+check_against_full(solver, 6)
 path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
 assert path.status == "completed", path.events
 ys = [path.branch_y(b, a).tolist() for b in path.branches for a in (0.0, 1.0)]
 nsol = len(enumerate_solutions(system, 0.5, solver=solver))
 # iterative refinement (forced: this K is well conditioned): residuals from the distributed K
 refined = CondensedSolver(system, SolverOptions(refine=True))
-for _ in range(3):
-    Z = InactiveSets.from_states(rng.integers(0, 4, system.m))
-    f = system.load(rng.uniform(0, 1))
-    yc, yf = refined.solve(Z, f), full.solve(Z, f)
-    assert np.abs(yc - yf).max() <= 1e-10 * np.abs(yf).max()
+check_against_full(refined, 3)
 rpath = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=refined)
 assert rpath.status == "completed", rpath.events
 if comm.rank == 0:
