@@ -92,10 +92,13 @@ REFINE_RTOL = 1e-10
 REFINE_TARGET = 1e-14
 REFINE_MAX_STEPS = 3
 #: The double-double residuals of many columns go in blocks of at most this many entries.
-REFINE_BLOCK_ENTRIES = 4_000_000
+REFINE_BLOCK_ENTRIES = 40_000_000
 #: S's correction to the accuracy of refined solves (:meth:`CondensedSolver._corrected`): random
-#: columns per round, and the largest rank tried before S is formed by solves instead.
-CORRECTION_BLOCK = 16
+#: columns per round that fit the correction, how many fewer directions than those it may have,
+#: random columns that check it, and the largest rank tried before S is formed by solves instead.
+CORRECTION_SKETCH = 14
+CORRECTION_OVERSAMPLE = 4
+CORRECTION_CHECK = 4
 CORRECTION_MAX_RANK = 256
 
 
@@ -278,8 +281,10 @@ class CondensedSolver:
         if S is not None:
             self._probe_refinement()
             if self.refine_steps:
+                self._loads.clear()  # (refined w1, w2 come with S's correction)
                 S = self._corrected(S, required=bool(schur))
-            if S is not None and not schur and not self._schur_accurate(S):
+            # (a corrected S agrees with refined solves on random vectors: the check below is done)
+            if S is not None and not schur and not self.refine_steps and not self._schur_accurate(S):
                 S = None  # (a slender or stiff-contrast model: the solves are accurate, the Schur complement not)
         #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs), "forward"
         #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
@@ -293,9 +298,8 @@ class CondensedSolver:
                 S = self._schur()
             self._probe_refinement()
             if self.refine_steps:
+                self._loads.clear()  # w1, w2 of the condensation came from unrefined solves
                 S = self._corrected(S, required=True)
-        if self.refine_steps:
-            self._loads.clear()  # w1, w2 of the condensation came from unrefined solves
         self.S = S
         #: S^T, C-ordered: its rows are S's columns (S lam over few non-zero lam by rows); S itself
         #: when S is exactly symmetric, else a copy, 2m x 2m more memory (S by solves is not
@@ -381,30 +385,24 @@ class CondensedSolver:
         self._correction_rtol = max(REFINE_TARGET, 10 * floor) if self.refine_steps else None
 
     def _probe(self):
-        """(steps, error, floor): refine one solve K x = B^T v (v fixed, random); error = the first
-        correction's share of B x (with a residual in double precision: when it is below
-        REFINE_RTOL, no refinement, steps = 0), steps = how many corrections with double-double
-        residuals it takes to get below REFINE_TARGET or to stop shrinking, floor = the
-        correction after those steps; or as SolverOptions.refine says."""
+        """(steps, error, floor): refine one solve K x = B^T v (v fixed, random) with double-double
+        residuals; error = the first correction's share of B x (when it is below REFINE_RTOL: no
+        refinement, steps = 0), steps = how many corrections it takes to get below REFINE_TARGET or
+        to stop shrinking, floor = the correction after those steps; or as SolverOptions.refine
+        says.  Two solves with K when no refinement is needed, one more per step."""
         opt = self.options.refine
         if opt is False or self.m == 0:
             return 0, None, None
         b = self.B_local.T @ np.random.default_rng(12345).standard_normal(2 * self.m)
         x = self._ksolve(b)
         scale = max(np.abs(self._allreduce(self.B_local @ x)).max(), 1e-300)
-        if not opt:
-            # first a correction from the residual in double precision: it cannot resolve less
-            # than the solve's own error, but it is of that order, which is all the decision needs
-            # (and it spares the seed-sized models the double-double residual's set-up)
-            r = b - self.K_local @ linalg.concat_ranks(self.comm, x)
-            c = np.abs(self._allreduce(self.B_local @ self._ksolve(r))).max() / scale
-            if c <= REFINE_RTOL:
-                return 0, c, None
         corrections = []
         while True:
             d = self._ksolve(self._kresidual(b, x))
             x += d
             c = np.abs(self._allreduce(self.B_local @ d)).max() / scale
+            if not corrections and not opt and c <= REFINE_RTOL:
+                return 0, c, None
             if corrections and (c <= REFINE_TARGET or c > 0.1 * corrections[-1]):
                 break  # after len(corrections) steps the error is c
             corrections.append(c)
@@ -445,53 +443,91 @@ class CondensedSolver:
                 X[:, sl] += self._ksolve_dense(np.asfortranarray(self._kresidual(rhs[:, sl], X[:, sl])))
         return X
 
-    def _s_exact(self, V: np.ndarray) -> np.ndarray:
-        """B K^-1 B^T V (2m x k) by refined solves."""
-        rhs = np.asfortranarray(self.B_local.T @ V)
-        return self._allreduce(np.ascontiguousarray(self.B_local @ self._refine_columns(self._ksolve_dense(rhs), rhs)))
+    def _s_exact(self, V: np.ndarray, loads=()) -> tuple:
+        """(B K^-1 B^T V, B K^-1 F) by refined solves, V 2m x k, F the ``loads`` (full vectors) as
+        columns: one multi-RHS solve (and one per refinement step) for all of them."""
+        k = V.shape[1]
+        rhs = np.empty((self.nloc, k + len(loads)), order="F")
+        rhs[:, :k] = self.B_local.T @ V
+        for j, f in enumerate(loads):
+            rhs[:, k + j] = f[self.r0:self.r1]
+        BX = self._allreduce(np.ascontiguousarray(self.B_local @ self._refine_columns(self._ksolve_dense(rhs), rhs)))
+        return BX[:, :k], BX[:, k:]
 
     def _corrected(self, S: np.ndarray, required: bool) -> Optional[np.ndarray]:
         """S (from unrefined solves, forward substitutions or the Schur complement) corrected to
-        the accuracy of refined solves.  Its error E = B K^-1 B^T - S lies, to rounding, in the
-        span of a few vectors (those of K's softest modes, where its condition number acts: on
-        a 20 x 1 strip, m = 1000, E's singular values fall from 6e-8 to 2e-14 of |S| in eight),
-        so a randomized range finder catches it: Y = E Omega for CORRECTION_BLOCK random
-        columns, Q = orth(Y), S += Q Q^T E (Q^T E = (B K^-1 B^T Q)^T - Q^T S, S exact being
-        symmetric), repeated until new random columns see no error beyond what refined solves
-        resolve (REFINE_TARGET, or ten times the probe's remaining correction; that check is
-        the last round's Y).  Cost: about 2 CORRECTION_BLOCK refined solves per round,
-        instead of 2m.  S is corrected in place.  None when the error is not caught by
-        CORRECTION_MAX_RANK columns (then the caller forms S otherwise), or S with a warning when
-        ``required``."""
+        the accuracy of refined solves; the system's loads B K^-1 (f1, f2) by refined solves ride
+        along in the first round (cached for load_data).
+
+        S's error E = B K^-1 B^T - S is symmetric and lies, to rounding, in the span of a few
+        vectors (those of K's softest modes, where its condition number acts: on a 20 x 1 strip,
+        m = 1000, E's singular values fall from 6e-8 to 2e-14 of |S| in eight).  One round: Y =
+        E Omega for CORRECTION_SKETCH + CORRECTION_CHECK random columns from one multi-RHS refined
+        solve (Y = B K^-1 B^T Omega - S Omega); from the sketch columns, Q = Y's leading left
+        singular vectors (at most CORRECTION_SKETCH - CORRECTION_OVERSAMPLE of them) and, E
+        being symmetric, E ~ Q T Q^T with T fitted to Q^T Y = T Q^T Omega (a single-pass
+        randomized approximation: no second solve); S += Q T Q^T.  The check columns, which the
+        fit has not seen, then measure what is left: at most REFINE_TARGET (or ten times the
+        probe's remaining correction) of |S| ends it, else the next round starts from S so
+        corrected.  Cost per round: one multi-RHS solve of 18 columns (+2 for the loads), and
+        one more per refinement step after double-double residuals of as many columns (cheap with
+        :mod:`cfcontact.native`), instead of 2m columns.  At n = 1e6 (two
+        blocks, m = 864) one round of 5 s; there E's singular values fall from 1 to 3e-5 in
+        four and then stay at 2e-7 (rounding).  S is made symmetric first (by solves it is not: see
+        :meth:`_schur`; refined, u is formed as accurately as S).  None when the error is
+        not caught by CORRECTION_MAX_RANK columns (then the caller forms S otherwise), or S with a
+        warning when ``required``."""
         m2 = S.shape[0]
         rng = np.random.default_rng(20261202)
-        Q = np.zeros((m2, 0))
+        loads = [] if self._loads else list(self.system.loads_numpy())
+        ks, kv = CORRECTION_SKETCH, CORRECTION_CHECK
+        if m2 <= ks + kv:  # small: S itself by refined solves
+            Se, W = self._s_exact(np.eye(m2), loads)
+            self._cache_loads(loads, W)
+            S[...] = 0.5 * (Se + Se.T)
+            self.correction_rank = m2
+            return S
+        if not np.array_equal(S, S.T):
+            # S by unrefined solves is not symmetric (see _schur); its antisymmetric part is error
+            # too (B K^-1 B^T is symmetric), and with it removed E is symmetric
+            S[...] = 0.5 * (S + S.T)
+        rank = 0
         while True:
-            k = min(CORRECTION_BLOCK, m2)
-            Om = rng.standard_normal((m2, k))
-            SOm = self._s_exact(Om)
+            Om = rng.standard_normal((m2, ks + kv))
+            SOm, W = self._s_exact(Om, loads)
+            self._cache_loads(loads, W)
+            loads = []
             Y = SOm - S @ Om
-            err = np.abs(Y).max() / max(np.abs(SOm).max(), 1e-300)
+            scale = max(np.abs(SOm).max(), 1e-300)
+            err = np.abs(Y).max() / scale
+            if err > self._correction_rtol:
+                if rank + ks > min(CORRECTION_MAX_RANK, m2):
+                    msg = f"S is off by {err:.1e} (relative) from refined solves after a correction of rank {rank}"
+                    if required:
+                        log.warning("%s; kept as it is", msg)
+                        self.correction_rank = rank
+                        return S
+                    log.info("%s; S is formed by solves instead", msg)
+                    return None
+                # E ~ Q T Q^T from the sketch columns
+                U, sig, _ = np.linalg.svd(Y[:, :ks], full_matrices=False)
+                r = int(min(np.count_nonzero(sig > 0.1 * self._correction_rtol * scale), ks - CORRECTION_OVERSAMPLE))
+                Q = U[:, :max(r, 1)]
+                T = (Q.T @ Y[:, :ks]) @ np.linalg.pinv(Q.T @ Om[:, :ks])
+                QT = Q @ (0.5 * (T + T.T))
+                C = QT @ Q.T
+                S += 0.5 * (C + C.T)  # (exactly symmetric: S stays so if it was)
+                rank += Q.shape[1]
+                # what is left, seen by the check columns
+                err = np.abs(Y[:, ks:] - QT @ (Q.T @ Om[:, ks:])).max() / scale
             if err <= self._correction_rtol:
-                self.correction_rank = Q.shape[1]
-                log.info("S corrected by rank %d: %.1e (relative) from refined solves on %d random vectors",
-                         Q.shape[1], err, k)
+                self.correction_rank = rank
+                log.info("S corrected by rank %d: %.1e (relative) left on %d random vectors", rank, err, kv)
                 return S
-            if Q.shape[1] + k > min(CORRECTION_MAX_RANK, m2):
-                msg = (f"S is off by {err:.1e} (relative) from refined solves after a correction of rank "
-                       f"{Q.shape[1]}")
-                if required:
-                    log.warning("%s; kept as it is", msg)
-                    self.correction_rank = Q.shape[1]
-                    return S
-                log.info("%s; S is formed by solves instead", msg)
-                return None
-            Y -= Q @ (Q.T @ Y)
-            Qn = np.linalg.qr(Y)[0]
-            Qn -= Q @ (Q.T @ Qn)
-            Qn = np.linalg.qr(Qn)[0]
-            S += Qn @ (self._s_exact(Qn).T - Qn.T @ S)
-            Q = np.hstack([Q, Qn])
+
+    def _cache_loads(self, loads, W):
+        """Keep w_j = B K^-1 f_j (the columns of W) for load_data."""
+        self._loads.extend((np.array(f, copy=True), W[:, j].copy()) for j, f in enumerate(loads))
 
     def _ksolve_dense(self, rhs: np.ndarray) -> np.ndarray:
         """K^-1 applied to the columns of ``rhs`` (local rows, nloc x k): one multi-RHS solve (MatMatSolve)."""

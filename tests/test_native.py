@@ -1,0 +1,120 @@
+"""The compiled double-double residual (cfcontact.native): built on first use, cached per
+source/compiler/CPU, the same bits as the NumPy implementation, and a clean fallback to NumPy
+when no compiler works."""
+
+import logging
+import subprocess
+import sys
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from cfcontact import linalg, native
+
+
+@pytest.fixture
+def fresh_native(monkeypatch, tmp_path):
+    """native with nothing loaded yet and its cache in a temporary folder."""
+    monkeypatch.setenv("CFCONTACT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(native, "_tried", False)
+    monkeypatch.setattr(native, "_kernel", None)
+    return tmp_path / "cache"
+
+
+def cancelling(n=300, k=7, seed=5):
+    """A sparse A with rows of mixed scales, x over 40 decades, b = A x + tiny: a residual that
+    double precision gets wrong."""
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=0.03, random_state=seed, format="csr")
+    A.data *= np.exp(rng.uniform(-10, 10, A.nnz))
+    A = (A + sp.eye(n) * 1e4).tocsr()
+    x = rng.standard_normal((n, k)) * np.exp(rng.uniform(-20, 20, (n, k)))
+    b = A @ x + rng.standard_normal((n, k)) * 1e-9
+    return A, b, x
+
+
+def test_compiled_kernel_gives_the_numpy_bits(fresh_native, monkeypatch):
+    """k = 7 columns: a block of 4 and three single columns in the kernel; C- and Fortran-ordered
+    input; the same bits as NumPy's slots (same operations, same order)."""
+    A, b, x = cancelling()
+    compiled = linalg.ExactResidual(A)
+    assert compiled.compiled
+    assert list(fresh_native.glob("ddresidual-*.so"))
+    monkeypatch.setenv("CFCONTACT_NATIVE", "0")
+    monkeypatch.setattr(native, "_tried", False)
+    plain = linalg.ExactResidual(A)
+    assert not plain.compiled
+    r1, r2 = compiled(b, x), plain(b, x)
+    assert np.array_equal(r1, r2)
+    assert np.array_equal(compiled(np.asfortranarray(b), np.asfortranarray(x)), r1)
+    assert np.array_equal(compiled(b[:, 2], x[:, 2]), r1[:, 2])
+    assert compiled(b[:, :0], x[:, :0]).shape == (A.shape[0], 0)
+
+
+def test_compiled_kernel_against_rational_arithmetic(fresh_native):
+    """Rows with unsorted CSR indices (the kernel sorts a copy; the caller's matrix is left as
+    it is) against Fractions."""
+    rng = np.random.default_rng(8)
+    A = sp.random(30, 30, density=0.3, random_state=9, format="csr") * 1e6 + sp.eye(30) * 1e6
+    A = sp.csr_matrix(A)
+    perm = [np.r_[A.indptr[i]:A.indptr[i + 1]][::-1] for i in range(30)]
+    U = sp.csr_matrix((A.data[np.concatenate(perm)], A.indices[np.concatenate(perm)], A.indptr), shape=A.shape)
+    U.has_sorted_indices = False
+    before = U.indices.copy()
+    x = rng.standard_normal((30, 2)) * 1e3
+    b = A @ x + rng.standard_normal((30, 2)) * 1e-4
+    Ad = A.toarray()
+    exact = np.array([[float(Fraction(b[i, k]) - sum(Fraction(Ad[i, j]) * Fraction(x[j, k]) for j in range(30)))
+                       for k in range(2)] for i in range(30)])
+    res = linalg.ExactResidual(U)
+    assert res.compiled
+    assert np.abs(res(b, x) - exact).max() <= 2.3e-16 * np.abs(exact).max()
+    assert np.array_equal(U.indices, before)
+
+
+def test_the_cache_is_reused_and_keyed(fresh_native, monkeypatch):
+    """A second process loads the cached object without compiling; another CPU (features) gets
+    another file."""
+    native.dd_residual_kernel()
+    files = sorted(fresh_native.glob("ddresidual-*.so"))
+    assert len(files) == 1
+    stamp = files[0].stat().st_mtime_ns
+    code = "import sys, cfcontact.native as n; sys.exit(0 if n.dd_residual_kernel() is not None else 1)"
+    env = {"CFCONTACT_CACHE_DIR": str(fresh_native), "PATH": "/usr/bin:/bin"}
+    assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
+    assert sorted(fresh_native.glob("ddresidual-*.so")) == files
+    assert files[0].stat().st_mtime_ns == stamp
+    monkeypatch.setattr(native, "_cpu_features", lambda: "another cpu")
+    monkeypatch.setattr(native, "_tried", False)
+    assert native.dd_residual_kernel() is not None
+    assert len(list(fresh_native.glob("ddresidual-*.so"))) == 2
+
+
+def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
+    """$CC that does not exist and no cc/gcc on PATH: None, logged, and ExactResidual still
+    works (NumPy); a compiler that fails: None as well, nothing left in the cache."""
+    A, b, x = cancelling(n=60, k=2)
+    ref = linalg.ExactResidual(A)(b, x)  # (compiled, cached)
+    for f in fresh_native.glob("*.so"):
+        f.unlink()
+    monkeypatch.setattr(native, "_tried", False)
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    monkeypatch.setenv("PATH", "/nonexistent")
+    with caplog.at_level(logging.INFO, logger="cfcontact.native"):
+        assert native.dd_residual_kernel() is None
+    assert "no C compiler" in caplog.text
+    res = linalg.ExactResidual(A)
+    assert not res.compiled
+    assert np.array_equal(res(b, x), ref)
+    # a "compiler" that always fails
+    fake = fresh_native.parent / "badcc"
+    fake.write_text("#!/bin/sh\necho 'cc: error: broken' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("CC", str(fake))
+    monkeypatch.setattr(native, "_tried", False)
+    with caplog.at_level(logging.INFO, logger="cfcontact.native"):
+        assert native.dd_residual_kernel() is None
+    assert "broken" in caplog.text
+    assert not list(fresh_native.glob("*.so"))
