@@ -1492,6 +1492,7 @@ class _Updater:
         self.codes0 = None
         self.refactorizations = 0
         self.updates = 0
+        self.unapplied = 0  # last refinement corrections measured, not applied (UPDATE_UNAPPLIED_RTOL)
         self.reasons = {}
 
     # ------------------------------------------------------------ node rows
@@ -1636,6 +1637,7 @@ class _Updater:
                     # applied one, is the error estimate (as that one's indicators times the
                     # contraction) and is not applied, which spares a product with S
                     Eg_scale = size / max(sizes[-2], 1e-300)
+                    self.unapplied += 1
                     break
                 # applied (after a poor first solve -- 5 % off on a strip at F = 30 -- the second
                 # correction can still be 3e-8 of lam)
