@@ -211,25 +211,25 @@ def _build(cc: str) -> Optional[Path]:
         key = hashlib.sha256("\n".join([_SOURCE, " ".join(flags), cc, version, platform.machine(),
                                         _cpu_features()]).encode()).hexdigest()[:20]
         for folder in (cache_dir(), Path(tempfile.gettempdir()) / f"cfcontact-{os.getuid()}"):
-            target = folder / f"ddresidual-{key}.so"
+            target = folder / f"kernels-{key}.so"
             if target.exists():
                 return target
             try:
                 folder.mkdir(parents=True, exist_ok=True)
                 with tempfile.TemporaryDirectory(dir=folder) as tmp:
-                    src = Path(tmp) / "ddresidual.c"
+                    src = Path(tmp) / "kernels.c"
                     src.write_text(_SOURCE)
-                    out = Path(tmp) / "ddresidual.so"
+                    out = Path(tmp) / "kernels.so"
                     proc = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"], capture_output=True,
                                           text=True, timeout=300)
                     if proc.returncode != 0:
-                        log.info("compiling the double-double kernel with %s failed: %s", " ".join(flags),
+                        log.info("compiling cfcontact.native's kernels with %s failed: %s", " ".join(flags),
                                  proc.stderr.strip()[-500:])
                         break  # the next flags
                     os.replace(out, target)  # atomic: a concurrent build leaves one complete file
                 return target
             except (OSError, subprocess.SubprocessError) as exc:
-                log.info("cannot build the double-double kernel in %s: %s", folder, exc)
+                log.info("cannot build cfcontact.native's kernels in %s: %s", folder, exc)
                 continue  # the next folder
     return None
 

@@ -41,7 +41,7 @@ def test_compiled_kernel_gives_the_numpy_bits(fresh_native, monkeypatch):
     A, b, x = cancelling()
     compiled = linalg.ExactResidual(A)
     assert compiled.compiled
-    assert list(fresh_native.glob("ddresidual-*.so"))
+    assert list(fresh_native.glob("kernels-*.so"))
     monkeypatch.setenv("CFCONTACT_NATIVE", "0")
     monkeypatch.setattr(native, "_tried", False)
     plain = linalg.ExactResidual(A)
@@ -78,18 +78,18 @@ def test_the_cache_is_reused_and_keyed(fresh_native, monkeypatch):
     """A second process loads the cached object without compiling; another CPU (features) gets
     another file."""
     native.dd_residual_kernel()
-    files = sorted(fresh_native.glob("ddresidual-*.so"))
+    files = sorted(fresh_native.glob("kernels-*.so"))
     assert len(files) == 1
     stamp = files[0].stat().st_mtime_ns
     code = "import sys, cfcontact.native as n; sys.exit(0 if n.dd_residual_kernel() is not None else 1)"
     env = {"CFCONTACT_CACHE_DIR": str(fresh_native), "PATH": "/usr/bin:/bin"}
     assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
-    assert sorted(fresh_native.glob("ddresidual-*.so")) == files
+    assert sorted(fresh_native.glob("kernels-*.so")) == files
     assert files[0].stat().st_mtime_ns == stamp
     monkeypatch.setattr(native, "_cpu_features", lambda: "another cpu")
     monkeypatch.setattr(native, "_tried", False)
     assert native.dd_residual_kernel() is not None
-    assert len(list(fresh_native.glob("ddresidual-*.so"))) == 2
+    assert len(list(fresh_native.glob("kernels-*.so"))) == 2
 
 
 def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
