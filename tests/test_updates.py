@@ -362,3 +362,23 @@ def test_paths_with_point_tableau_equal_paths_without(model, monkeypatch):
     _same_paths(a, b)
     assert [t.pivots for t in a.transitions] == [t.pivots for t in b.transitions]
     assert a.stats["pivots"] == b.stats["pivots"]
+
+
+def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch):
+    """Without cfcontact.native's kernels (no compiler, CFCONTACT_NATIVE=0) products with two
+    columns go by BLAS' gemv: the same path, rounding apart (every product column by column, as
+    on large interfaces, so that the kernel is used where it can be)."""
+    from cfcontact import native
+
+    monkeypatch.setattr(condensed, "COLUMNWISE_MIN_ROWS", 1)
+    system = _chain(8, 2.7, 5, 2)
+    paths = {}
+    for compiled in (True, False):
+        if not compiled:
+            monkeypatch.setattr(native, "_tried", True)
+            monkeypatch.setattr(native, "_lib", None)
+        assert (native.library() is not None) == compiled
+        solver = CondensedSolver(system, SolverOptions(updates=True))
+        paths[compiled] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    _same_paths(paths[True], paths[False])
+    assert paths[True].status == "completed" and paths[True].folds and len(paths[True].transitions) > 50
