@@ -122,8 +122,8 @@ def test_s_by_solves_is_the_solves_own_so_formed_points_meet_their_gaps():
     """S by solves keeps its columns B K^-1 b_j as the solves give them (S^T kept beside it): the
     solve forming u = K^-1 (f - B^T lam) then agrees with B u = w - S lam.  On a slender strip
     (L/H = 10, m = 500) the SSNM start's closed nodes meet their gaps to 3e-12 of the multipliers;
-    with S symmetrized it was 4e-11.  (Without refinement: this strip's solves are off by more than
-    REFINE_RTOL, and refined solves give S corrected and symmetric, checked at the end.)"""
+    with S symmetrized it was 4e-11.  (Without refinement; refined solves give S corrected and
+    symmetric, checked at the end.)"""
     from cfcontact.bench_stress import strip
 
     system = strip(500, 0.3, seed=0)
@@ -140,7 +140,7 @@ def test_s_by_solves_is_the_solves_own_so_formed_points_meet_their_gaps():
     g = solver.indicators(lam, w)
     ref = lam + system.rho * (w - Slam)
     assert np.abs(g[:system.m] - ref[:system.m]).max() <= 1e-12 * np.abs(ref).max()
-    refined = CondensedSolver(system)
+    refined = CondensedSolver(system, SolverOptions(refine=True))
     assert refined.refine_steps >= 1 and refined.St is refined.S
     sol = cfcontact.ssnm(system, 0.0, solver=refined)
     assert cfcontact.verify(system, sol, 0.0, solver=refined).worst() <= 1e-11
