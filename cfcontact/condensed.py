@@ -609,7 +609,7 @@ class CondensedSolver:
             log.warning("forward substitutions with K's Cholesky factor do not give B K^-1 B^T = X X^T here; "
                         "S by solves")
             return None
-        self._loads.extend((np.array(f, copy=True), W[:, j].copy()) for j, f in enumerate(fs))
+        self._cache_loads(fs, W)
         return 0.5 * (S + S.T)
 
     def _on_arrays(self, op, src: np.ndarray, dst: np.ndarray):
@@ -659,7 +659,7 @@ class CondensedSolver:
                 obj.destroy()
         m2 = 2 * self.m
         self.stats.linear_solves += B.shape[0]
-        self._loads.extend((np.array(f, copy=True), BX[:, m2 + j].copy()) for j, f in enumerate(fs))
+        self._cache_loads(fs, BX[:, m2:])
         return BX[:, :m2]
 
     def _allreduce(self, a: np.ndarray) -> np.ndarray:
@@ -1636,8 +1636,8 @@ class _Updater:
                 Dl = solve(self._residual(types, W, L, SL))
                 size = np.abs(Dl).max(initial=0.0)
                 sizes.append(size)
-                if step and size <= 1e-3 * sizes[0] and (
-                        np.abs(Dl).max(axis=0) <= UPDATE_UNAPPLIED_RTOL * np.abs(L).max(axis=0)).all():
+                converged = step and size <= 1e-3 * sizes[0]
+                if converged and (np.abs(Dl).max(axis=0) <= UPDATE_UNAPPLIED_RTOL * np.abs(L).max(axis=0)).all():
                     # converged to rounding: this correction, this much smaller than the last
                     # applied one, is the error estimate (as that one's indicators times the
                     # contraction) and is not applied, which spares a product with S
@@ -1650,7 +1650,7 @@ class _Updater:
                 SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
-                if step and size <= 1e-3 * sizes[0]:
+                if converged:
                     # converged, the correction applied: the next one would be about this much
                     # smaller than it, the error estimate
                     Eg_scale = size / max(sizes[-2], 1e-300)
