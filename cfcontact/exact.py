@@ -429,7 +429,7 @@ class _Context:
         self._point = None  # the degenerate point being crossed: [its first branch, pivots so far, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
                       "perturbation_solves": 0, "homotopy_transitions": 0, "start_pivots": 0, "point_updates": 0,
-                      "tableau_updates": 0}
+                      "tableau_updates": 0, "revisited_vertices": 0}
 
     def line(self, codes, alpha) -> _Line:
         codes = np.asarray(codes, dtype=np.int8)
@@ -1009,7 +1009,7 @@ def _shift(ln: _Line, delta: float):
 
 
 def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: float, tied, a_err: float,
-                      alpha_from: float):
+                      alpha_from: float, start_key=None):
     """Decide the continuation at the transition point a_star (uncertainty a_err, reached on ln from
     alpha_from).  Returns (line, d, transition), or a status ("stuck") after recording an event.
 
@@ -1045,11 +1045,15 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
             ctx._lines.pop((nxt.key, float(a_star)), None)
             _shift(nxt, delta)
             a_star = nxt.alpha
-    alternatives = []
+    alternatives, choice = [], 0
     if degenerate:
         ctx.stats["degenerate_points"] += 1
         ctx.stats["max_vanishing"] = max(ctx.stats["max_vanishing"], len(tied))
         alternatives = _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots)
+        choice = _untraversed(ctx, alternatives, start_key)
+        if choice:
+            ctx.stats["revisited_vertices"] += 1
+            nxt, d = alternatives[choice]
     kind = "transversal" if d == s else "fold"
     changes = _changes(ln, nxt, vanishing)
     tr = Transition(len(path.transitions), a_star, kind, changes[0]["node"], changes[0]["set"], branch.index,
@@ -1058,13 +1062,106 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
     if len(alternatives) > 1:
         ctx.stats["branch_points"] += 1
         alts = [{"sets": c.sets.to_dict(), "states": c.sets.states(), "orientation": int(dd),
-                 "kind": "transversal" if dd == s else "fold", "alpha": a_star, "chosen": k == 0}
+                 "kind": "transversal" if dd == s else "fold", "alpha": a_star, "chosen": k == choice}
                 for k, (c, dd) in enumerate(alternatives)]
+        which = ("the one of the lexicographic rule" if not choice else
+                 f"alternative {choice}: the rule's own, alternative 0, is a branch the path has traversed "
+                 f"(this point is a vertex it reaches a second time)")
         path.events.append(PathEvent("branch_point", a_star, f"{len(alternatives)} branches leave the transition "
-                                     f"point; following the one of the lexicographic rule (see "
-                                     f"data['alternatives'], follow_alternative)", branch.index,
+                                     f"point; following {which} (see data['alternatives'], "
+                                     f"follow_alternative)", branch.index,
                                      {"alternatives": alts, "transition": tr.index, "vanishing": vanishing}))
     return nxt, d, tr
+
+
+def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing=()):
+    """(line, d, transition) leaving the transition point a_star of (ln, s) by a branch the path
+    has not traversed, where the rule's continuation ``nxt`` is one it has; or None.
+
+    This is a vertex where more than two branches meet, reached a second time after a loop of
+    branches, whose first crossing looked like an ordinary transition: nxt was entered there
+    through another node's condition (the constraints of both nodes vanish at the vertex, their
+    roots a little apart in rounding).  The continuations are those of the nodes of both
+    crossings (and those whose constraints vanish there), each node in every state its indicators
+    admit there, whose constraints hold on an
+    open alpha interval from the vertex -- to within the vertex's own uncertainty, the distance in
+    alpha between its two crossings times each constraint's rate -- the branches traversed
+    excluded; the first is taken, the rule's orientation preferred."""
+    codes = nxt.codes
+    first = next((b for b in path.branches if b.origin is not None
+                  and np.array_equal(_canon(ctx.system, b.sets), codes)), None)
+    nodes = {int(c["node"]) for c in tr.changes if int(c["node"]) >= 0} | {int(i) for i in vanishing}
+    if first is not None:
+        nodes |= {int(c["node"]) for c in path.transitions[first.origin].changes if int(c["node"]) >= 0}
+    nodes = sorted(nodes)
+    if not nodes or len(nodes) > ENUMERATION_CHECK_NODES:
+        return None
+    # the vertex's position in alpha is known to the distance between its two crossings: a
+    # candidate's constraints may miss it by that much, times their rates
+    a_tol = abs(a_star - first.alpha_enter) if first is not None else 0.0
+    g_star = ln.ind_at(a_star)
+    tol = np.broadcast_to(ln.ind_tol(a_star), (3 * ctx.m,))
+    m = ctx.m
+    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])) for i in nodes]
+    lam_star = ln.lam_at(a_star)
+    lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
+    conts = []
+    for cb in itertools.product(*choices):
+        codes_c = ln.codes.copy()
+        codes_c[nodes] = cb
+        key = _digest(codes_c.tobytes())
+        if np.array_equal(codes_c, ln.codes) or (key in ctx.visited and key not in (start_key[0],)):
+            continue
+        try:
+            cand = ctx.line(codes_c, a_star)
+        except SingularSystemError:
+            continue
+        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc:
+            continue  # does not pass through the vertex
+        slack = cand.tol_v + np.abs(cand.dc) * a_tol
+        if (cand.c < -slack).any():
+            continue
+        zero = cand.c <= slack
+        dz, tz = cand.dc[zero], cand.tol_s[zero]
+        for dd, ok in ((d, (dz >= -tz).all() if d > 0 else (dz <= tz).all()),
+                       (-d, (dz >= -tz).all() if d < 0 else (dz <= tz).all())):
+            if ok and (key not in ctx.visited or (key, dd) == start_key):
+                conts.append((cand, dd))
+    if not conts:
+        return None
+    c, dd = conts[0]
+    ctx.stats["revisited_vertices"] += 1
+    changes = _changes(ln, c, [])
+    new = Transition(tr.index, a_star, "transversal" if dd == s else "fold", changes[0]["node"], None,
+                     tr.from_branch, tr.to_branch, bracket=tr.bracket, changes=changes, pivots=list(tr.pivots))
+    path.events.append(PathEvent("branch_point", a_star, f"a vertex reached a second time: the continuation "
+                                 f"of the rule enters branch {first.index if first is not None else '?'} again; "
+                                 f"following an untraversed branch of nodes {nodes} (see data['alternatives'], "
+                                 f"follow_alternative)", tr.from_branch, jsonable(
+                                     {"alternatives": [{"sets": x.sets.to_dict(), "states": x.sets.states(),
+                                                        "orientation": int(dx), "kind": "transversal" if dx == s
+                                                        else "fold", "alpha": a_star, "chosen": x is c}
+                                                       for x, dx in conts],
+                                      "transition": tr.index, "revisited": True, "nodes": nodes})))
+    return c, dd, new
+
+
+def _untraversed(ctx, alternatives, start_key) -> int:
+    """The alternative to follow at a branch point: the rule's own (0) unless the path has already
+    traversed its branch and another alternative's branch is new.  A path through a vertex where
+    more than two branches meet may come back to it (a loop of branches from the vertex to itself);
+    it must then leave by a branch it has not traversed, as a walk through a graph's vertex of
+    degree four leaves by the edges it has not used.  Entering a traversed branch instead is what
+    "cycling" reports.  The path's first branch in its first orientation is not avoided: returning
+    to it is a closed curve of solutions ("closed_loop")."""
+    def seen(k):
+        c, dd = alternatives[k]
+        key = _digest(c.codes.tobytes())
+        return key in ctx.visited and (key, dd) != start_key
+
+    if not seen(0):
+        return 0
+    return next((k for k in range(1, len(alternatives)) if not seen(k)), 0)
 
 
 def _alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots) -> list:
@@ -1156,19 +1253,24 @@ class _Walk:
             at, a_star, tied, a_err = _recenter(ctx, ln, s, a_star, self.alpha)
             if not tied.size:  # nothing vanishes when looked at closely: go on (rare)
                 at, a_star, tied, a_err = ln, a_star, tied, a_err
-        res = _transition_point(ctx, path, branch, at, s, a_star, tied, a_err, self.alpha)
+        res = _transition_point(ctx, path, branch, at, s, a_star, tied, a_err, self.alpha, self.start_key)
         if isinstance(res, str):
             branch.alpha_exit = a_star
             path.add_point(branch, a_star)
             return "status", res
         nxt, d, tr = res
         a_star = tr.alpha
+        key = _digest(nxt.codes.tobytes())
+        if key in ctx.visited and (key, d) != self.start_key:
+            other = _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, self.start_key, at.cnode[tied])
+            if other is not None:
+                nxt, d, tr = other
+                key = _digest(nxt.codes.tobytes())
         branch.alpha_exit = a_star
         exit_, entry = _meeting_point(ctx, ln, nxt, a_star)
         if exit_ is not None:
             path.end_branch_at(branch, a_star, *exit_)
         path.add_point(branch, a_star)
-        key = _digest(nxt.codes.tobytes())
         seen = ctx.visited.get(key)
         if seen is not None:
             closed = (key, d) == self.start_key
@@ -1552,7 +1654,9 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     ``max_vanishing``, ``branch_points``, ``homotopy_transitions`` (of the start's homotopies),
     ``point_updates`` (intermediate branches of degenerate points solved by the point's rank-2
     updates, :class:`~cfcontact.condensed.PointModel`) and ``tableau_updates`` (pivots made on a
-    point's own tableau, :class:`~cfcontact.condensed.PointTableau`).
+    point's own tableau, :class:`~cfcontact.condensed.PointTableau`), ``revisited_vertices``
+    (branch points reached a second time, left by a branch not yet traversed instead of the
+    rule's own).
     """
     overrides = {} if tie_rtol is None else {"tie_rtol": tie_rtol}
     if tree:

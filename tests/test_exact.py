@@ -189,6 +189,79 @@ def test_branch_points_reported_and_followed():
         follow_alternative(system, path, len(path.events) + 3, 0)
 
 
+def _traversed_before(monkeypatch, ex, only_rule=False):
+    """Make the first branch point of a path look reached a second time: for its decision, the
+    branch of the rule's continuation is marked traversed (``only_rule``: and the rule's is the
+    only alternative found, as at a vertex whose first crossing looked ordinary; the mark then
+    stays until the walk's own check has seen it)."""
+    done = []
+    if only_rule:
+        original = ex._alternatives
+
+        def alternatives(ctx, ln, s, a_star, tied, nxt, d, pivots):
+            out = original(ctx, ln, s, a_star, tied, nxt, d, pivots)
+            if not done:
+                done.append(out[0])
+                ctx.visited[ex._digest(nxt.codes.tobytes())] = (d, -1.0)
+                return out[:1]
+            return out
+
+        revisited = ex._revisited_vertex
+
+        def revisited_vertex(ctx, *args, **kwargs):
+            try:
+                return revisited(ctx, *args, **kwargs)
+            finally:  # the branch was not traversed: a later visit is the first
+                ctx.visited.pop(ex._digest(done[0][0].codes.tobytes()), None)
+
+        monkeypatch.setattr(ex, "_alternatives", alternatives)
+        monkeypatch.setattr(ex, "_revisited_vertex", revisited_vertex)
+    else:
+        original = ex._untraversed
+
+        def untraversed(ctx, alternatives, start_key):
+            if done or len(alternatives) < 2:
+                return original(ctx, alternatives, start_key)
+            done.append(alternatives[0])
+            key = ex._digest(alternatives[0][0].codes.tobytes())
+            ctx.visited[key] = (alternatives[0][1], -1.0)
+            try:
+                return original(ctx, alternatives, start_key)
+            finally:
+                del ctx.visited[key]
+
+        monkeypatch.setattr(ex, "_untraversed", untraversed)
+    return done
+
+
+@pytest.mark.parametrize("only_rule", [False, True])
+def test_a_vertex_reached_again_is_left_by_an_untraversed_branch(monkeypatch, only_rule):
+    """A path may reach a vertex where more than two branches meet a second time (after a loop of
+    branches from it back to it; the m = 4000 strip of Part C at F = 30 does, its first crossing
+    seen as an ordinary transition); it must then leave by a branch it has not traversed, not
+    enter one again ("cycling").  Simulated on the two identical nodes: the rule's continuation at
+    the first branch point is marked traversed.  With the point's alternatives found, the walk
+    takes another one (``_untraversed``); with only the rule's found, it enumerates the states of
+    the crossing's nodes (``_revisited_vertex``).  Either way: no cycling, the chosen branch is
+    recorded in a branch_point event, and every stored transition verifies."""
+    import cfcontact.exact as ex
+
+    system = two_identical_nodes()
+    done = _traversed_before(monkeypatch, ex, only_rule)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert done and path.status in ("completed", "closed_loop"), path.events
+    assert path.stats["revisited_vertices"] >= 1
+    ev = next(e for e in path.events if e.kind == "branch_point")
+    chosen = [a for a in ev.data["alternatives"] if a["chosen"]]
+    assert len(chosen) == 1
+    rule = canonical_codes(done[0][0].sets, system.friction, system.no_tangent)
+    assert not np.array_equal(canonical_codes(InactiveSets.from_dict(chosen[0]["sets"]), system.friction,
+                                              system.no_tangent), rule)
+    assert ("second time" in ev.message) if only_rule else ("alternative" in ev.message)
+    assert not any(e.kind == "cycling" for e in path.events)
+    assert_transitions_verify(system, path, 1e-12)
+
+
 def test_dead_end_is_reported_not_raised(monkeypatch):
     import cfcontact.exact as ex
 
