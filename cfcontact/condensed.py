@@ -152,10 +152,11 @@ def _by_columns(apply, rows, X):
 
 
 def _times(A, X):
-    """A @ X: for two columns and a C-ordered A of at least COLUMNWISE_MIN_ROWS rows by the
-    compiled kernel that reads A once for both (:func:`cfcontact.native.gemv2`: 1.2 instead of
-    1.7 ms at 1728 rows, 5.9 instead of 11 ms at 4000, as accurate), else :func:`_by_columns`."""
-    if X.ndim == 2 and X.shape[1] == 2 and A.shape[0] >= COLUMNWISE_MIN_ROWS:
+    """A @ X: for two columns and a C-ordered A of at least COLUMNWISE_MIN_ROWS rows or columns
+    (the rows of S of a few nodes too) by the compiled kernel that reads A once for both
+    (:func:`cfcontact.native.gemv2`: 1.2 instead of 1.7 ms at 1728 rows, 5.9 instead of 11 ms at
+    4000, as accurate), else :func:`_by_columns`."""
+    if X.ndim == 2 and X.shape[1] == 2 and max(A.shape) >= COLUMNWISE_MIN_ROWS:
         Y = native.gemv2(A, X)
         if Y is not None:
             return Y
@@ -1604,13 +1605,15 @@ class _Updater:
         if info != 0 or not d.max() < np.inf or d.min() <= 1e-14 * max(d.max(), 1e-300):
             return None
         SD = self.s.S[_node_rows(self.m, D)]
+        ZcT = self.ZcT  # (this branch's: _ensure may replace it by a larger copy later)
 
         def solve(B, y=None):  # y: M(Z0)^-1 B when known
             if y is None:
                 y = self._base_solve(B)
             # (D's unit rows hold to rounding only; making them exact cost accuracy: on the m = 1000
             # strip at F = 30 the transitions' alpha drifted 1e-8 from the fresh LUs' after 4900)
-            return y - _times(ZcD, _getrs(lu, piv, self._vt(D, types, y, _times(SD, y)))[0])
+            # (ZcD X from the rows of Zc^T, not from ZcD: F-ordered, it took BLAS a pass per column)
+            return y - _rows_t_times(ZcT, cols, _getrs(lu, piv, self._vt(D, types, y, _times(SD, y)))[0])
 
         return solve
 
