@@ -192,6 +192,26 @@ class Runner:
 
 
 # ============================================================ the lock
+def _flock_holder_pid(file) -> Optional[int]:
+    """The PID holding an flock on ``file`` according to Linux' /proc/locks, or None (another
+    system, no such lock, or the file gone)."""
+    try:
+        st = os.stat(file)
+        with open("/proc/locks") as fh:
+            lines = fh.read().splitlines()
+    except OSError:
+        return None
+    ident = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    for line in lines:
+        fields = line.split()
+        if "FLOCK" in fields and "->" not in fields and ident in fields:
+            try:
+                return int(fields[fields.index(ident) - 1])
+            except (ValueError, IndexError):
+                return None
+    return None
+
+
 class OutputLock:
     """An advisory lock (``fcntl.flock``) on ``<out>.lock`` beside the output folder ``out``.
 
@@ -233,6 +253,10 @@ class OutputLock:
                         break
                     time.sleep(0.01)
                     info = self.holder()
+                if "pid" not in info:  # a holder stopped before writing them: the kernel knows its PID
+                    pid = _flock_holder_pid(self.file)
+                    if pid is not None:
+                        info = {"pid": pid}
                 who = (f"process {info.get('pid', '?')} ({info.get('command', 'cfcontact run')}, started "
                        f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(info['time']))} on "
                        f"{info.get('host', '?')})" if isinstance(info.get("time"), (int, float)) else

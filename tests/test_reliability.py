@@ -384,6 +384,29 @@ def test_interrupt_at_random_points_then_resume_equals_uninterrupted(tmp_path):
         assert (out / "path.png").is_file() and not os.path.exists(str(out) + ".partial"), note
 
 
+def test_a_lock_without_its_holders_details_names_the_holder_from_the_kernel(tmp_path):
+    """A holder stopped (or hung) between locking and writing its details into the lock file:
+    the refusal still names its PID, from Linux' /proc/locks (this race made the concurrent-runs
+    test below fail once on a loaded machine: "process ?")."""
+    import fcntl
+
+    from cfcontact.case import CaseError
+    from cfcontact.run import OutputLock
+
+    out = str(tmp_path / "out")
+    fd = os.open(out + ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held, nothing written
+        with pytest.raises(CaseError, match=f"process {os.getpid()} holds"):
+            OutputLock(out).acquire()
+    finally:
+        os.close(fd)
+    lock = OutputLock(out).acquire()  # free again
+    assert json.loads(open(out + ".lock").read())["pid"] == os.getpid()
+    lock.release()
+    assert not os.path.exists(out + ".lock")
+
+
 @pytest.mark.slow
 def test_two_concurrent_runs_into_one_folder(tmp_path):
     """A second run (even with --force) into a folder a live run holds is refused with exit 2 naming
