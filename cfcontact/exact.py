@@ -1074,6 +1074,13 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
     return nxt, d, tr
 
 
+#: A vertex reached a second time (:func:`_revisited_vertex`) is located to within this many times
+#: the distance in alpha between its two crossings.  (On Part C's m = 1000 strip at F = 30 the
+#: untraversed continuation missed the vertex by 1.01 times that distance: a distance is an
+#: estimate of the uncertainty, not a bound.)
+REVISIT_SLACK = 2.0
+
+
 def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing=()):
     """(line, d, transition) leaving the transition point a_star of (ln, s) by a branch the path
     has not traversed, where the rule's continuation ``nxt`` is one it has; or None.
@@ -1083,10 +1090,10 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
     through another node's condition (the constraints of both nodes vanish at the vertex, their
     roots a little apart in rounding).  The continuations are those of the nodes of both
     crossings (and those whose constraints vanish there), each node in every state its indicators
-    admit there, whose constraints hold on an
-    open alpha interval from the vertex -- to within the vertex's own uncertainty, the distance in
-    alpha between its two crossings times each constraint's rate -- the branches traversed
-    excluded; the first is taken, the rule's orientation preferred."""
+    admit there, and the alternatives recorded where the first crossing was a branch point; those
+    whose constraints hold on an open alpha interval from the vertex -- to within the vertex's own
+    uncertainty, twice the distance in alpha between its two crossings times each rate -- are kept,
+    the branches traversed excluded; the first is taken, the rule's orientation preferred."""
     codes = nxt.codes
     first = next((b for b in path.branches if b.origin is not None
                   and np.array_equal(_canon(ctx.system, b.sets), codes)), None)
@@ -1096,27 +1103,37 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
     nodes = sorted(nodes)
     if not nodes or len(nodes) > ENUMERATION_CHECK_NODES:
         return None
-    # the vertex's position in alpha is known to the distance between its two crossings: a
-    # candidate's constraints may miss it by that much, times their rates
-    a_tol = abs(a_star - first.alpha_enter) if first is not None else 0.0
+    # the vertex's position in alpha is known to about the distance between its two crossings: a
+    # candidate's constraints may miss it by that much (times REVISIT_SLACK), times their rates
+    a_tol = REVISIT_SLACK * abs(a_star - first.alpha_enter) if first is not None else 0.0
     g_star = ln.ind_at(a_star)
     tol = np.broadcast_to(ln.ind_tol(a_star), (3 * ctx.m,))
     m = ctx.m
-    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])) for i in nodes]
-    lam_star = ln.lam_at(a_star)
-    lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
-    conts = []
+    dg = np.abs(ln.dg)
+    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])
+                                  + a_tol * max(dg[i], dg[m + i], dg[2 * m + i])) for i in nodes]
+    candidates = {}
     for cb in itertools.product(*choices):
         codes_c = ln.codes.copy()
         codes_c[nodes] = cb
-        key = _digest(codes_c.tobytes())
+        candidates.setdefault(_digest(codes_c.tobytes()), codes_c)
+    # the alternatives recorded where the first crossing was a branch point
+    for ev in path.events:
+        if first is not None and ev.kind == "branch_point" and ev.data.get("transition") == first.origin:
+            for a in ev.data.get("alternatives", []):
+                codes_c = _canon(ctx.system, InactiveSets.from_dict(a["sets"]))
+                candidates.setdefault(_digest(codes_c.tobytes()), codes_c)
+    lam_star = ln.lam_at(a_star)
+    lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
+    conts = []
+    for key, codes_c in candidates.items():
         if np.array_equal(codes_c, ln.codes) or (key in ctx.visited and key not in (start_key[0],)):
             continue
         try:
             cand = ctx.line(codes_c, a_star)
         except SingularSystemError:
             continue
-        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc:
+        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc + a_tol * np.abs(cand.dlam).max(initial=0):
             continue  # does not pass through the vertex
         slack = cand.tol_v + np.abs(cand.dc) * a_tol
         if (cand.c < -slack).any():
@@ -1129,6 +1146,7 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
                 conts.append((cand, dd))
     if not conts:
         return None
+    conts.sort(key=lambda cd: cd[1] != d)  # (stable: the enumeration's order otherwise)
     c, dd = conts[0]
     ctx.stats["revisited_vertices"] += 1
     changes = _changes(ln, c, [])
