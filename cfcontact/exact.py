@@ -1095,8 +1095,8 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
     uncertainty, twice the distance in alpha between its two crossings times each rate -- are kept,
     the branches traversed excluded; the first is taken, the rule's orientation preferred."""
     codes = nxt.codes
-    first = next((b for b in path.branches if b.origin is not None
-                  and np.array_equal(_canon(ctx.system, b.sets), codes)), None)
+    first = next((b for b in reversed(path.branches) if b.origin is not None  # (each set is entered once;
+                  and np.array_equal(_canon(ctx.system, b.sets), codes)), None)    # loops are short: from the end)
     nodes = {int(c["node"]) for c in tr.changes if int(c["node"]) >= 0} | {int(i) for i in vanishing}
     if first is not None:
         nodes |= {int(c["node"]) for c in path.transitions[first.origin].changes if int(c["node"]) >= 0}
