@@ -875,13 +875,16 @@ def _admissible_states(ctx: _Context, g_star: np.ndarray, node: int, tol: float)
     return out
 
 
-def _directions(ln: _Line) -> tuple:
+def _directions(ln: _Line, a_tol: float = 0.0) -> tuple:
     """(valid for d = +1, valid for d = -1): is ln consistent on [alpha_ref, alpha_ref + d eps] for
-    some eps > 0 (from its values and rates at its reference point)?"""
-    neg = ln.c < -ln.tol_v
+    some eps > 0 (from its values and rates at its reference point)?  ``a_tol``: the reference
+    point is known only to within this much in alpha (each value's tolerance grows by its rate
+    times a_tol)."""
+    tol_v = ln.tol_v + np.abs(ln.dc) * a_tol if a_tol else ln.tol_v
+    neg = ln.c < -tol_v
     if neg.any():
         return False, False
-    zero = ln.c <= ln.tol_v
+    zero = ln.c <= tol_v
     if not zero.any():
         return True, True
     dz, tz = ln.dc[zero], ln.tol_s[zero]
@@ -895,31 +898,42 @@ def _same_line(a: _Line, b: _Line, rtol=1e-9) -> bool:
                 and np.abs(a.dlam - b.dlam).max(initial=0) <= rtol * max(sc, np.abs(b.dlam).max(initial=0)))
 
 
-def _enumerated_continuations(ctx: _Context, ln: _Line, s: int, a_star: float, nodes) -> list:
+def _enumerated_continuations(ctx: _Context, ln: _Line, s: int, a_star: float, nodes, a_tol: float = 0.0,
+                              extra=(), admit=None) -> list:
     """Every (line, direction) continuing (ln, s) at a_star found by trying the admissible states of
-    ``nodes`` (the cross-check of small degenerate points)."""
+    ``nodes`` (the cross-check of small degenerate points), and the state codes ``extra``.
+    ``a_tol``: a_star is known only to within this much in alpha (a vertex reached a second time,
+    :func:`_revisited_vertex`): the indicators, multipliers and constraints may miss it by that
+    much times their rates.  ``admit(codes, d)``: which candidates may be kept at all (d=None:
+    asked before the candidate's line is solved)."""
     g_star = ln.ind_at(a_star)
     tol = np.broadcast_to(ln.ind_tol(a_star), (3 * ctx.m,))
     m = ctx.m
-    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])) for i in nodes]
+    dg = np.abs(ln.dg)
+    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])
+                                  + a_tol * max(dg[i], dg[m + i], dg[2 * m + i])) for i in nodes]
+    candidates = {}
+    for cb in itertools.product(*choices):
+        codes = ln.codes.copy()
+        codes[nodes] = cb
+        candidates.setdefault(codes.tobytes(), codes)
+    for codes in extra:
+        candidates.setdefault(codes.tobytes(), codes)
     lam_star = ln.lam_at(a_star)
     lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
     out = []
-    current = [int(ln.codes[i]) for i in nodes]
-    for cb in itertools.product(*choices):
-        if list(cb) == current:
+    for codes in candidates.values():
+        if np.array_equal(codes, ln.codes) or (admit is not None and not admit(codes, None)):
             continue
-        codes = ln.codes.copy()
-        codes[nodes] = cb
         try:
             cand = ctx.line(codes, a_star)
         except SingularSystemError:
             continue
-        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc:
+        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc + a_tol * np.abs(cand.dlam).max(initial=0):
             continue  # does not pass through the transition point
-        fwd, bwd = _directions(cand)
+        fwd, bwd = _directions(cand, a_tol)
         for d, ok in ((s, fwd if s > 0 else bwd), (-s, bwd if s > 0 else fwd)):
-            if not ok:
+            if not ok or (admit is not None and not admit(codes, d)):
                 continue
             if d == -s and _same_line(cand, ln):
                 continue  # the incoming branch itself
@@ -1106,44 +1120,16 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
     # the vertex's position in alpha is known to about the distance between its two crossings: a
     # candidate's constraints may miss it by that much (times REVISIT_SLACK), times their rates
     a_tol = REVISIT_SLACK * abs(a_star - first.alpha_enter) if first is not None else 0.0
-    g_star = ln.ind_at(a_star)
-    tol = np.broadcast_to(ln.ind_tol(a_star), (3 * ctx.m,))
-    m = ctx.m
-    dg = np.abs(ln.dg)
-    choices = [_admissible_states(ctx, g_star, i, max(tol[i], tol[m + i], tol[2 * m + i])
-                                  + a_tol * max(dg[i], dg[m + i], dg[2 * m + i])) for i in nodes]
-    candidates = {}
-    for cb in itertools.product(*choices):
-        codes_c = ln.codes.copy()
-        codes_c[nodes] = cb
-        candidates.setdefault(_digest(codes_c.tobytes()), codes_c)
     # the alternatives recorded where the first crossing was a branch point
-    for ev in path.events:
-        if first is not None and ev.kind == "branch_point" and ev.data.get("transition") == first.origin:
-            for a in ev.data.get("alternatives", []):
-                codes_c = _canon(ctx.system, InactiveSets.from_dict(a["sets"]))
-                candidates.setdefault(_digest(codes_c.tobytes()), codes_c)
-    lam_star = ln.lam_at(a_star)
-    lsc = max(np.abs(lam_star).max(initial=0), ln.scale, 1e-300)
-    conts = []
-    for key, codes_c in candidates.items():
-        if np.array_equal(codes_c, ln.codes) or (key in ctx.visited and key not in (start_key[0],)):
-            continue
-        try:
-            cand = ctx.line(codes_c, a_star)
-        except SingularSystemError:
-            continue
-        if np.abs(cand.lam - lam_star).max(initial=0) > 1e-6 * lsc + a_tol * np.abs(cand.dlam).max(initial=0):
-            continue  # does not pass through the vertex
-        slack = cand.tol_v + np.abs(cand.dc) * a_tol
-        if (cand.c < -slack).any():
-            continue
-        zero = cand.c <= slack
-        dz, tz = cand.dc[zero], cand.tol_s[zero]
-        for dd, ok in ((d, (dz >= -tz).all() if d > 0 else (dz <= tz).all()),
-                       (-d, (dz >= -tz).all() if d < 0 else (dz <= tz).all())):
-            if ok and (key not in ctx.visited or (key, dd) == start_key):
-                conts.append((cand, dd))
+    extra = [_canon(ctx.system, InactiveSets.from_dict(a["sets"])) for ev in path.events
+             if first is not None and ev.kind == "branch_point" and ev.data.get("transition") == first.origin
+             for a in ev.data.get("alternatives", [])]
+
+    def untraversed(codes, dd):  # (dd=None: in some orientation)
+        key = _digest(codes.tobytes())
+        return key not in ctx.visited or (key == start_key[0] if dd is None else (key, dd) == start_key)
+
+    conts = _enumerated_continuations(ctx, ln, s, a_star, nodes, a_tol, extra, admit=untraversed)
     if not conts:
         return None
     conts.sort(key=lambda cd: cd[1] != d)  # (stable: the enumeration's order otherwise)
