@@ -6,7 +6,7 @@
   0.5 s per right-hand side, 22 s of the set-up of an exact path that otherwise takes 3 s.  The
   same arithmetic in C over A's CSR rows takes 0.02 s per right-hand side.
 * the dense product of a C-ordered A with two columns (:func:`gemv2`: the exact method's
-  branches have two, the values and the rates): one pass over A, two rows at a time with
+  branches have two, the values and the rates): one pass over A, four rows at a time with
   software prefetch, instead of BLAS' gemv once per column (its gemm with two columns is slower
   still).  1.2 instead of 1.7 ms at 1728 rows, 5.9 instead of 11 ms at 4000, single thread.
 * the solve with a dense LU's transpose for those two columns (:func:`getrs2t`): one pass over
@@ -119,60 +119,6 @@ void cfc_dd_residual(int64_t nrows, const int64_t *indptr, const int64_t *indice
    end -- as accurate as OpenBLAS' gemv (2e-16 of |A| |x| at n = 1728). */
 typedef double v4d __attribute__((vector_size(32), aligned(8))); /* aligned(8): unaligned loads */
 
-/* two rows' dot products with x0 and x1 (4 accumulators of 4 lanes; two memory streams) */
-static inline void rows2(int64_t nc, const double *a, const double *b, const double *x0, const double *x1,
-                         double *y)
-{
-    v4d z = {0.0, 0.0, 0.0, 0.0}, sa0 = z, sa1 = z, sb0 = z, sb1 = z;
-    int64_t j = 0;
-    for (; j + 4 <= nc; j += 4) {
-        __builtin_prefetch(a + j + 256);
-        __builtin_prefetch(b + j + 256);
-        v4d u = *(const v4d *)(x0 + j), v = *(const v4d *)(x1 + j);
-        v4d ra = *(const v4d *)(a + j), rb = *(const v4d *)(b + j);
-        sa0 += ra * u;
-        sa1 += ra * v;
-        sb0 += rb * u;
-        sb1 += rb * v;
-    }
-    double t[4] = {0.0, 0.0, 0.0, 0.0};
-    for (; j < nc; j++) {
-        t[0] += a[j] * x0[j];
-        t[1] += a[j] * x1[j];
-        t[2] += b[j] * x0[j];
-        t[3] += b[j] * x1[j];
-    }
-    y[0] = ((sa0[0] + sa0[2]) + (sa0[1] + sa0[3])) + t[0];
-    y[1] = ((sa1[0] + sa1[2]) + (sa1[1] + sa1[3])) + t[1];
-    y[2] = ((sb0[0] + sb0[2]) + (sb0[1] + sb0[3])) + t[2];
-    y[3] = ((sb1[0] + sb1[2]) + (sb1[1] + sb1[3])) + t[3];
-}
-
-void cfc_gemv2(int64_t nr, int64_t nc, const double *A, int64_t lda, const double *x0, const double *x1,
-               double *y0, double *y1)
-{
-    double y[4];
-    int64_t i = 0;
-    for (; i + 2 <= nr; i += 2) {
-        rows2(nc, A + i * lda, A + (i + 1) * lda, x0, x1, y);
-        y0[i] = y[0];
-        y1[i] = y[1];
-        y0[i + 1] = y[2];
-        y1[i + 1] = y[3];
-    }
-    if (i < nr) {
-        rows2(nc, A + i * lda, A + i * lda, x0, x1, y);
-        y0[i] = y[0];
-        y1[i] = y[1];
-    }
-}
-/* Triangular solves with two right-hand sides in one pass over the factor: x <- A^-T x for
-   x = (x0, x1) and A = P L U as LAPACK's getrf leaves it (lu column-major, leading dimension
-   lda, piv 0-based), i.e. getrs with trans = 1.  Row i of U^T (of L^T) is column i of U (of L):
-   contiguous, so each row is a dot product; four rows at a time share the pass over the part
-   already solved (four streams, the way BLAS' gemv_t blocks), the small triangle of the block
-   then row by row.  OpenBLAS' getrs with two columns was 2x slower than two with one column;
-   this is 1.4-1.8x faster than those two at 1728-4000 rows, as accurate. */
 #define PF 128 /* prefetch distance, doubles */
 
 /* s[2k + r] = sum_{j < len} c_k[j] x_r[j] for four columns c_0..c_3 and the two vectors x_0, x_1 */
@@ -214,6 +160,30 @@ static inline void dots4x2(int64_t len, const double *c0, const double *c1, cons
         s[q] = ((acc[q][0] + acc[q][2]) + (acc[q][1] + acc[q][3])) + t[q];
 }
 
+void cfc_gemv2(int64_t nr, int64_t nc, const double *A, int64_t lda, const double *x0, const double *x1,
+               double *y0, double *y1)
+{
+    double s[8];
+    const double *c[4];
+    for (int64_t i = 0; i < nr; i += 4) { /* four rows at a time (a short last block repeats a row) */
+        int nb = nr - i < 4 ? (int)(nr - i) : 4;
+        for (int k = 0; k < 4; k++)
+            c[k] = A + (i + (k < nb ? k : 0)) * lda;
+        dots4x2(nc, c[0], c[1], c[2], c[3], x0, x1, s);
+        for (int k = 0; k < nb; k++) {
+            y0[i + k] = s[2 * k];
+            y1[i + k] = s[2 * k + 1];
+        }
+    }
+}
+
+/* Triangular solves with two right-hand sides in one pass over the factor: x <- A^-T x for
+   x = (x0, x1) and A = P L U as LAPACK's getrf leaves it (lu column-major, leading dimension
+   lda, piv 0-based), i.e. getrs with trans = 1.  Row i of U^T (of L^T) is column i of U (of L):
+   contiguous, so each row is a dot product; four rows at a time share the pass over the part
+   already solved (four streams, the way BLAS' gemv_t blocks), the small triangle of the block
+   then row by row.  OpenBLAS' getrs with two columns was 2x slower than two with one column;
+   this is 1.4-1.8x faster than those two at 1728-4000 rows, as accurate. */
 void cfc_getrs2t(int64_t n, const double *lu, int64_t lda, const int32_t *piv, double *x0, double *x1)
 {
     double s[8];

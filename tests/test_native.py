@@ -125,8 +125,8 @@ def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
 
 @pytest.mark.parametrize("rows, cols", [(1, 1), (7, 3), (401, 13), (420, 1728), (1001, 1002)])
 def test_two_column_product(rows, cols):
-    """gemv2 (both columns in one pass over A) against exact products: odd row counts (the last
-    row alone), column counts not multiples of 4 (the scalar tail), entries over 10 decades; as
+    """gemv2 (both columns in one pass over A) against exact products: row counts not multiples of
+    4 (a short last block of rows), column counts not multiples of 4 (the scalar tail), entries over 10 decades; as
     accurate as BLAS' gemv.  Other layouts or column counts: None (the caller multiplies)."""
     rng = np.random.default_rng(rows + cols)
     A = rng.standard_normal((rows, cols)) * np.exp(rng.uniform(-12, 12, (rows, cols)))
