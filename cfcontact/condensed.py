@@ -247,12 +247,14 @@ class CondensedSolver:
         self.F = system.friction_vector
         self._F0 = self.F == 0.0
         self.no_tangent = np.asarray(system.no_tangent, dtype=bool)
+        self._any_no_tangent = bool(self.no_tangent.any())
         self._updater = None  # factorization updates of the exact method's branches (_Updater)
         self._imposed_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()  # imposed_rows by state
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
-        self._lu_extra: dict = {}  # key -> (lu, rows of S on the support, positions of slip nodes' lam_n)
+        self._lu_extra: dict = {}  # key -> (lu, rows of S on the support, positions of slip nodes' lam_n,
+        #                                     their lam_t rows, their coefficients as a column)
         self._loads: list = []  # [(f, w)]
         #: wall times [s] of the set-up: "factorization" (KSP set-up of K), "condensation" (S)
         self.timings = {}
@@ -819,9 +821,11 @@ class CondensedSolver:
         2 slip+, 3 slip-, as :func:`cfcontact.exact.canonical_codes`; an open node is
         tangentially free), cached under the caller's ``key``.  The same reduced system as
         :meth:`_factor` for the equivalent InactiveSets, with fewer array operations."""
-        closed = (codes != _OPEN).nonzero()[0]
-        # the free unknowns (a node without tangential DOFs sticks with lam_t = 0)
-        rows = np.concatenate([closed, self.m + ((codes == _STICK) & ~self.no_tangent).nonzero()[0]])
+        # the free unknowns: the closed nodes' lam_n, then the sticking nodes' lam_t (a node without
+        # tangential DOFs sticks with lam_t = 0), i.e. the rows of B u the branch imposes
+        imposed = self.imposed_rows(codes)
+        rows = imposed.nonzero()[0]
+        closed = rows[:np.count_nonzero(imposed[:self.m])]
         slip = (codes >= _SLIP_P).nonzero()[0]  # lam_t,i = F sgn lam_n,i substituted
         coef = self.F[slip] * _SLIP_SIGN[codes[slip]]
         return self._factor_reduced(key, rows, closed, slip, coef, lambda: self._describe_codes(codes))
@@ -924,9 +928,10 @@ class CondensedSolver:
                 self._lu_extra.clear()
             # (below UPDATE_MIN_SIZE the whole of S is cheaper to multiply than its rows to gather)
             extra = (lu, None if 2 * self.m < UPDATE_MIN_SIZE else self.St.take(support, axis=0),
-                     np.searchsorted(rows[:rows.size - (rows >= self.m).sum()], slip))
+                     np.searchsorted(rows[:rows.size - (rows >= self.m).sum()], slip), self.m + slip,
+                     coef[:, None])
             self._lu_extra[key] = extra
-        _, Ssup, pos = extra
+        _, Ssup, pos, tslip, coef_c = extra
         m, c, S = self.m, W.shape[1], self.S
         if not rows.size:
             L = np.zeros((2 * m, c))
@@ -938,7 +943,7 @@ class CondensedSolver:
             full = np.zeros((2 * m, c))
             full[rows] = x
             if slip.size:
-                full[m + slip] = coef[:, None] * x[pos]
+                full[tslip] = coef_c * x[pos]
             return full, (S @ full if Ssup is None else Ssup.T @ full[support])
 
         L, SL = expand(_lu_solve(lu, piv, Wr, trans=1))
@@ -979,8 +984,14 @@ class CondensedSolver:
         key = codes.tobytes()
         cache = self._imposed_cache
         rows = cache.get(key)
-        if rows is None:
-            rows = cache[key] = _imposed(_node_types(self, codes))
+        if rows is None:  # (_imposed(_node_types(self, codes)) without the slip coefficients)
+            m = codes.size
+            rows = np.empty(2 * m, dtype=bool)
+            np.not_equal(codes, _OPEN, out=rows[:m])
+            np.equal(codes, _STICK, out=rows[m:])
+            if self._any_no_tangent:
+                rows[m:] &= ~self.no_tangent
+            cache[key] = rows
             if len(cache) > 16:
                 cache.popitem(last=False)
         return rows

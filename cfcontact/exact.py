@@ -143,6 +143,7 @@ for _st, _k, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0
     _PIVOT[_st, _k, _ind] = _to
 # membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
 _SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
+_CODE_SETS = np.ascontiguousarray(_SETS_OF_CODE.T)  # (nu, tp, tm) rows by code: 3 x 4
 
 
 def canonical_codes(sets: InactiveSets, friction, no_tangent=None) -> np.ndarray:
@@ -170,8 +171,7 @@ def node_kinds(system) -> np.ndarray:
 
 
 def sets_from_codes(codes) -> InactiveSets:
-    table = _SETS_OF_CODE[np.asarray(codes)]  # m x 3
-    return InactiveSets(table[:, 0], table[:, 1], table[:, 2])
+    return InactiveSets.from_rows(_CODE_SETS.take(np.asarray(codes), axis=1))  # (3 x m, a fresh array)
 
 
 def state_constraints(codes, F0) -> tuple:
@@ -968,8 +968,13 @@ def _precise_side(ctx, old: _Line, new: _Line) -> Optional[str]:
     before, after = imposed(old.codes), imposed(new.codes)
     changed = (old.codes != new.codes).nonzero()[0]  # (usually one node)
     m = old.codes.size
-    gain = (after[changed].astype(int) + after[m + changed]) - (before[changed].astype(int) + before[m + changed])
-    more, less = bool((gain > 0).any()), bool((gain < 0).any())
+    if changed.size == 1:  # (the same count for one node, without arrays)
+        i = int(changed[0])
+        gain = (int(after[i]) + int(after[m + i])) - (int(before[i]) + int(before[m + i]))
+        more, less = gain > 0, gain < 0
+    else:
+        gain = (after[changed].astype(int) + after[m + changed]) - (before[changed].astype(int) + before[m + changed])
+        more, less = bool((gain > 0).any()), bool((gain < 0).any())
     if more == less:
         return None
     return "new" if more else "old"

@@ -127,6 +127,19 @@ class InactiveSets:
         return cls(nu=codes == 0, tp=(codes == 0) | (codes == 2), tm=codes == 3)
 
     @classmethod
+    def from_rows(cls, table: np.ndarray) -> "InactiveSets":
+        """Sets from the rows (nu, tp, tm) of a 3 x m boolean array that the caller gives away (a
+        fresh array, e.g. a table lookup): made read-only and used as is, without the copies of
+        the constructor (the exact method forms one per branch)."""
+        if table.dtype != bool or table.ndim != 2 or table.shape[0] != 3:
+            raise InputError(f"from_rows needs a 3 x m boolean array, got {table.dtype} {table.shape}")
+        table.setflags(write=False)
+        sets = cls.__new__(cls)
+        for name, row in zip(("nu", "tp", "tm"), table):
+            object.__setattr__(sets, name, row)
+        return sets
+
+    @classmethod
     def all_stick(cls, m) -> "InactiveSets":
         z = np.zeros(m, dtype=bool)
         return cls(z, z, z)
