@@ -79,6 +79,14 @@ FULL_BACKEND_RTOL_FACTOR = 100.0
 #: Safety factor on the rounding error of an indicator measured by one step of iterative refinement
 #: (condensed backend): an indicator within that many times its measured error counts as zero.
 ERROR_FACTOR = 16.0
+#: Rounding of the data w = B K^-1 f - (g; 0) of the condensed backend, in units of the largest row:
+#: its solves are accurate in norm, so every row that reads w (an open node's gap, a slipping or
+#: open node's slip) carries at least this many units of the largest abs(w_i) (of abs(w2 - w1)
+#: in its rate) on top of its own size (``_CondensedData._data_scale``).  The centre node of the
+#: symmetric obstacle case (demos/cases/obstacle.toml) has a tangential row of -1e-19 against a
+#: largest row of 0.16 where the exact value is 0: a root that it alone separates by 1e-17 in
+#: alpha from the node's closing is the same point.
+DATA_ULPS = 16.0
 #: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them).
 PERTURBATION_COLUMNS = 2
 #: A degenerate point's intermediate branches come from rank-2 updates of one model of the point
@@ -215,7 +223,7 @@ class _Line:
                  "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex")
 
     def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
-                 source=None, eg=None, tol=None):
+                 source=None, eg=None, tol=None, floor=None):
         self.codes, self.key, self.alpha = codes, key, float(alpha)
         self.lam, self.dlam, self.g, self.dg = lam, dlam, g, dg
         self.cidx, self.csgn, self.cnode = state_constraints(codes, F0_index)
@@ -223,8 +231,9 @@ class _Line:
         self.dc = self.csgn * dg[self.cidx]
         self.scale = float(scale_v.max()) if np.ndim(scale_v) else float(scale_v)
         # what counts as zero for each indicator value / rate: the local size times rtol, plus the
-        # measured rounding error (eg: 3m x 2, from iterative refinement) times a safety factor;
-        # ``tol``: given (ind_tv, ind_ts) instead (an intermediate branch of a point: the point's)
+        # measured rounding error (eg: 3m x 2, from iterative refinement) times a safety factor,
+        # plus the data's rounding (floor: (values, rates), 3m each, see DATA_ULPS); ``tol``: given
+        # (ind_tv, ind_ts) instead (an intermediate branch of a point: the point's)
         if tol is not None:
             self.ind_tv, self.ind_ts = tol
         else:
@@ -233,6 +242,9 @@ class _Line:
             if eg is not None:
                 self.ind_tv = self.ind_tv + ERROR_FACTOR * eg[:, 0]
                 self.ind_ts = self.ind_ts + ERROR_FACTOR * eg[:, 1]
+            if floor is not None:
+                self.ind_tv = self.ind_tv + floor[0]
+                self.ind_ts = self.ind_ts + floor[1]
         tv, ts = self.ind_tv, self.ind_ts
         self.tol_v = (tv[self.cidx] if np.ndim(tv) else np.full(self.cidx.size, tv)) + _alpha_rounding(self.alpha,
                                                                                                        self.dc)
@@ -291,6 +303,24 @@ class _CondensedData:
         self.dw = self.w2 - self.w1
         self.rho = solver.system.rho
         self.WE = None  # perturbation data B K^-1 E (2m x J)
+        # sqrt(S_ii): |S_ij| <= sqrt(S_ii S_jj) (S = B K^-1 B^T is positive semidefinite) bounds the
+        # terms of (S lam)_i row by row in O(m) (see line)
+        self.sqrt_diag = np.sqrt(np.maximum(np.diagonal(solver.S), 0.0))
+        self.dw_max = np.abs(self.dw).max(initial=0.0)
+
+    def _data_scale(self, w, w_max, lam) -> np.ndarray:
+        """Per indicator (3m), the size of the terms that its free B u row, w - S lam, sums: |w_i|
+        plus the bound sqrt(S_ii) sum_j sqrt(S_jj) |lam_j| of sum_j |S_ij lam_j|, at most w_max
+        (the size every free row was given before).  The rounding of w_i - (S lam)_i is a few units
+        of |w_i| + sum_j |S_ij lam_j| (measured on the m = 4000 strip: at most 2.3 units); on a
+        slender body the rows near a clamp are a hundredth of the free end's.  With the largest
+        row's size for all, an open node near the clamp had an uncertainty in alpha of 1.7e-5,
+        which spanned its neighbour's root: the two were taken as one point, the rule closed the
+        neighbour first, and the path later came back to the node's real root inside a branch it
+        had traversed ("cycling")."""
+        r = np.minimum(np.abs(w) + self.sqrt_diag * (self.sqrt_diag @ np.abs(lam)), w_max)
+        m = r.size // 2
+        return np.concatenate([r[:m], r[m:], r[m:]])
 
     def line(self, codes, key, alpha):
         W = np.empty((self.dw.size, 2))
@@ -305,16 +335,19 @@ class _CondensedData:
         rows = ~self.solver.imposed_rows(codes)
         m = rows.size // 2
         free = np.concatenate([rows[:m], rows[m:], rows[m:]])
-        scale_v = np.abs(L[:, 0]).max(initial=0.0) + self.rho * np.abs(w).max(initial=0.0) * free
-        scale_s = np.abs(L[:, 1]).max(initial=0.0) + self.rho * np.abs(self.dw).max(initial=0.0) * free
-        solver = self.solver
         lam, dlam = L[:, 0], L[:, 1]
+        rho, w_max = self.rho, np.abs(w).max(initial=0.0)
+        scale_v = np.abs(lam).max(initial=0.0) + rho * self._data_scale(w, w_max, lam) * free
+        scale_s = np.abs(dlam).max(initial=0.0) + rho * self._data_scale(self.dw, self.dw_max, dlam) * free
+        unit = DATA_ULPS * np.finfo(float).eps * rho * free
+        floor = (unit * w_max, unit * self.dw_max)
+        solver = self.solver
 
         def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
             U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0])
             return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
 
-        return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg
+        return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg, floor
 
     def _rate_columns(self, J):
         """The right-hand sides of an intermediate branch of a degenerate point: the rates' w2 - w1
@@ -392,7 +425,7 @@ class _FullData:
         scale_v = np.abs(Y[n:]).max(initial=0.0) + rho * np.abs(self.system.contact_maps()[0] @ Y[:n]).max(
             initial=0.0) + np.abs(g).max(initial=0.0)
         scale_s = np.abs(dY[n:]).max(initial=0.0) + np.abs(dg).max(initial=0.0)
-        return Y[n:], dY[n:], g, dg, scale_v, scale_s, (lambda: (Y, dY)), None, None
+        return Y[n:], dY[n:], g, dg, scale_v, scale_s, (lambda: (Y, dY)), None, None, None
 
     def perturbation(self, line, E_loads):
         sets = line.sets
@@ -438,9 +471,10 @@ class _Context:
         ln = self._lines.get(ck)
         if ln is not None:
             return ln
-        lam, dlam, g, dg, sv, ss, full, source, eg = self.data.line(codes, b"exact:" + key, alpha)
+        lam, dlam, g, dg, sv, ss, full, source, eg, floor = self.data.line(codes, b"exact:" + key, alpha)
         rtol = self.rtol if eg is not None else FULL_BACKEND_RTOL_FACTOR * self.rtol
-        ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg)
+        ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg,
+                   floor=floor)
         if len(self._lines) > 64:
             self._lines.clear()
         self._lines[ck] = ln

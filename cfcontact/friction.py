@@ -278,7 +278,7 @@ class _FData:
                                       f"{exc}") from None
         scale_v = np.abs(lam).max(initial=0.0) + self.rho * np.abs(self.w).max(initial=0.0)
         scale_s = np.abs(dlam).max(initial=0.0) + np.abs(dg).max(initial=0.0)
-        return lam, dlam, g, dg, scale_v, scale_s, None, None, err
+        return lam, dlam, g, dg, scale_v, scale_s, None, None, err, None
 
     def perturbation(self, line, E_loads):
         if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
