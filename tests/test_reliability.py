@@ -407,6 +407,15 @@ def test_a_lock_without_its_holders_details_names_the_holder_from_the_kernel(tmp
     assert not os.path.exists(out + ".lock")
 
 
+def _lock_holder(out):
+    """The PID in the details of the lock file of the output folder ``out`` (None before they are written)."""
+    try:
+        with open(out + ".lock") as fh:
+            return json.loads(fh.read() or "{}").get("pid")
+    except (FileNotFoundError, ValueError):
+        return None
+
+
 @pytest.mark.slow
 def test_two_concurrent_runs_into_one_folder(tmp_path):
     """A second run (even with --force) into a folder a live run holds is refused with exit 2 naming
@@ -418,7 +427,9 @@ def test_two_concurrent_runs_into_one_folder(tmp_path):
     a = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", case_a, "-q", "-o", out], env=_env(), cwd=ROOT,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 600  # (a loaded machine can take long to import and validate)
-    while not os.path.exists(out + ".lock") and time.monotonic() < deadline and a.poll() is None:
+    # (the lock file exists from the holder's open on, its lock from the flock right after, its
+    # details once it holds the lock: stopped between open and flock, a run holds nothing yet)
+    while not _lock_holder(out) == a.pid and time.monotonic() < deadline and a.poll() is None:
         time.sleep(0.01)
     a.send_signal(signal.SIGSTOP)  # hold it inside its run
     assert os.path.exists(out + ".lock"), "the first run never took its lock"
