@@ -307,20 +307,22 @@ class _CondensedData:
         # terms of (S lam)_i row by row in O(m) (see line)
         self.sqrt_diag = np.sqrt(np.maximum(np.diagonal(solver.S), 0.0))
         self.dw_max = np.abs(self.dw).max(initial=0.0)
+        m = self.dw.size // 2
+        self._rows3 = np.concatenate([np.arange(m), m + np.arange(m), m + np.arange(m)])
 
     def _data_scale(self, w, w_max, lam) -> np.ndarray:
-        """Per indicator (3m), the size of the terms that its free B u row, w - S lam, sums: |w_i|
-        plus the bound sqrt(S_ii) sum_j sqrt(S_jj) |lam_j| of sum_j |S_ij lam_j|, at most w_max
-        (the size every free row was given before).  The rounding of w_i - (S lam)_i is a few units
+        """Per row i of B u (2m), the size of the terms that w_i - (S lam)_i sums: |w_i| plus the
+        bound sqrt(S_ii) sum_j sqrt(S_jj) |lam_j| of sum_j |S_ij lam_j|, at most w_max (the size
+        every free row was given before).  The rounding of w_i - (S lam)_i is a few units
         of |w_i| + sum_j |S_ij lam_j| (measured on the m = 4000 strip: at most 2.3 units); on a
         slender body the rows near a clamp are a hundredth of the free end's.  With the largest
         row's size for all, an open node near the clamp had an uncertainty in alpha of 1.7e-5,
         which spanned its neighbour's root: the two were taken as one point, the rule closed the
         neighbour first, and the path later came back to the node's real root inside a branch it
         had traversed ("cycling")."""
-        r = np.minimum(np.abs(w) + self.sqrt_diag * (self.sqrt_diag @ np.abs(lam)), w_max)
-        m = r.size // 2
-        return np.concatenate([r[:m], r[m:], r[m:]])
+        r = np.abs(w)
+        r += self.sqrt_diag * (self.sqrt_diag @ np.abs(lam))
+        return np.minimum(r, w_max, out=r)
 
     def line(self, codes, key, alpha):
         W = np.empty((self.dw.size, 2))
@@ -332,15 +334,18 @@ class _CondensedData:
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
         # B u rows are equations of the branch, exactly zero (CondensedSolver._ind)
-        rows = ~self.solver.imposed_rows(codes)
-        m = rows.size // 2
-        free = np.concatenate([rows[:m], rows[m:], rows[m:]])
+        imposed = self.solver.imposed_rows(codes)
         lam, dlam = L[:, 0], L[:, 1]
         rho, w_max = self.rho, np.abs(w).max(initial=0.0)
-        scale_v = np.abs(lam).max(initial=0.0) + rho * self._data_scale(w, w_max, lam) * free
-        scale_s = np.abs(dlam).max(initial=0.0) + rho * self._data_scale(self.dw, self.dw_max, dlam) * free
-        unit = DATA_ULPS * np.finfo(float).eps * rho * free
-        floor = (unit * w_max, unit * self.dw_max)
+        dv, ds = self._data_scale(w, w_max, lam), self._data_scale(self.dw, self.dw_max, dlam)
+        dv[imposed] = 0.0
+        ds[imposed] = 0.0
+        rows3 = self._rows3  # indicator -> its row of B u (a: N u, bp and bm: T u)
+        scale_v = np.abs(lam).max(initial=0.0) + rho * dv.take(rows3)
+        scale_s = np.abs(dlam).max(initial=0.0) + rho * ds.take(rows3)
+        free = (~imposed).take(rows3)
+        unit = DATA_ULPS * np.finfo(float).eps * rho
+        floor = ((unit * w_max) * free, (unit * self.dw_max) * free)
         solver = self.solver
 
         def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
