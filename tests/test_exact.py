@@ -598,6 +598,32 @@ def test_steep_constraint_missing_zero_by_rounding_is_a_tie():
     assert _directions(line(-10 * tol)) == (True, True)  # positive: consistent both ways
 
 
+def test_close_roots_of_small_rows_are_not_merged_by_a_large_row():
+    """Each indicator's tolerance comes from its own row of the condensed data, not from the largest
+    row: here node 0 is pulled away with w_0 = -1e6 (the largest row; it stays open), and nodes 1
+    and 2 (rows of size 1) close at alpha = 1/2 and 1/2 + 3e-8.  With the largest row's size for
+    every row (1e-13 x 1e6: an uncertainty of 5e-8 in alpha for each root) the two roots were one
+    degenerate point, crossed as one transition; with their own sizes they are two transitions at
+    their analytic roots (the m = 4000 strip of Part C cycled after such a merge)."""
+    m, delta = 3, 3e-8
+    n = 2 * m
+    K = np.diag([1.0, 1.0, 1.0, 1.0, 1.0, 1.0])  # (u_t, u_n) per node, uncoupled: S = I
+    N, T = np.zeros((m, n)), np.zeros((m, n))
+    for i in range(m):
+        T[i, 2 * i], N[i, 2 * i + 1] = 1.0, 1.0
+    f1, f2 = np.zeros(n), np.zeros(n)
+    f1[1] = f2[1] = -1e6  # node 0: pulled away, the largest row
+    f1[3], f2[3] = -1.0, 1.0  # node 1: f_n = 2 alpha - 1, closes at 1/2
+    f1[5], f2[5] = -1.0, 1.0 / (0.5 + delta) - 1.0  # node 2: closes at 1/2 + delta
+    system = ContactSystem.from_arrays(K, N, T, f1, f2, 0.0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=CondensedSolver(system))
+    assert path.status == "completed"
+    assert [(t.node, t.set, t.kind) for t in path.transitions] == [(1, "nu", "transversal"), (2, "nu", "transversal")]
+    assert [len(t.changes) for t in path.transitions] == [1, 1]
+    assert abs(path.transitions[0].alpha - 0.5) <= 1e-14
+    assert abs(path.transitions[1].alpha - (0.5 + delta)) <= 1e-14
+
+
 def test_follow_alternative_stopped_by_callback_keeps_the_main_resume_state():
     """A callback that stops an alternative's sub-run ends that sub-run; the path's resume state
     stays the main run's (here: none, the main run completed), so a resume cannot continue the
