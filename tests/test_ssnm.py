@@ -172,3 +172,20 @@ def test_singular_stiffness_gives_clear_error():
     system = cfcontact.ContactSystem.from_arrays(K, [[0, 1, 0]], [[1, 0, 0]], [1, 1, 1], [1, 1, 1], 0.3)
     with pytest.raises(cfcontact.SingularSystemError, match="singular"):
         cfcontact.ssnm(system, 0.0)
+
+
+def test_inactive_sets_from_rows_keeps_the_array_and_checks_it():
+    """InactiveSets.from_rows takes a fresh 3 x m boolean array as the sets' rows (no copies: the
+    exact method forms one per branch), read-only like the constructor's, equal to them; anything
+    else is refused with what was given."""
+    from cfcontact.errors import InputError
+    from cfcontact.ssnm import InactiveSets
+
+    table = np.array([[True, False, False], [True, False, True], [False, False, False]])
+    sets = InactiveSets.from_rows(table)
+    assert sets == InactiveSets(table[0].copy(), table[1].copy(), table[2].copy())
+    assert sets.states() == ["open", "stick", "slip+"]
+    assert np.shares_memory(sets.nu, table) and not table.flags.writeable
+    for bad in (np.zeros((2, 3), dtype=bool), np.zeros((3, 3)), np.zeros(3, dtype=bool)):
+        with pytest.raises(InputError, match="3 x m boolean"):
+            InactiveSets.from_rows(bad)
