@@ -984,14 +984,8 @@ class CondensedSolver:
         key = codes.tobytes()
         cache = self._imposed_cache
         rows = cache.get(key)
-        if rows is None:  # (_imposed(_node_types(self, codes)) without the slip coefficients)
-            m = codes.size
-            rows = np.empty(2 * m, dtype=bool)
-            np.not_equal(codes, _OPEN, out=rows[:m])
-            np.equal(codes, _STICK, out=rows[m:])
-            if self._any_no_tangent:
-                rows[m:] &= ~self.no_tangent
-            cache[key] = rows
+        if rows is None:
+            rows = cache[key] = _imposed_of_codes(self, codes)
             if len(cache) > 16:
                 cache.popitem(last=False)
         return rows
@@ -1174,13 +1168,25 @@ def _s_times(solver, X):
     return _rows_t_times(solver.St, nz, X[nz])
 
 
+def _imposed_of_codes(solver, codes) -> np.ndarray:
+    """The rows of B u (2m booleans) that the branch of the state ``codes`` imposes: N u = g at
+    its closed nodes (first m), T u = 0 at its sticking ones with a tangential unknown (last m)."""
+    m = codes.size
+    rows = np.empty(2 * m, dtype=bool)
+    np.not_equal(codes, _OPEN, out=rows[:m])
+    np.equal(codes, _STICK, out=rows[m:])
+    if solver._any_no_tangent:
+        rows[m:] &= ~solver.no_tangent
+    return rows
+
+
 def _node_types(solver, codes):
     """(closed, S tangential row, slip coefficient) per node of the state codes: what each node's
-    two rows of M(Z) are (see :class:`_Updater`)."""
-    closed = codes != _OPEN
-    t_s = (codes == _STICK) & ~solver.no_tangent
-    coef = solver.F * _SLIP_SIGN[codes]
-    return closed, t_s, coef
+    two rows of M(Z) are (see :class:`_Updater`); closed and S tangential row are the two halves
+    of :func:`_imposed_of_codes`."""
+    rows = _imposed_of_codes(solver, codes)
+    m = codes.size
+    return rows[:m], rows[m:], solver.F * _SLIP_SIGN[codes]
 
 
 def _imposed(types) -> np.ndarray:
