@@ -100,6 +100,36 @@ def test_tutorial_blocks_are_found_in_order():
     assert len(run_blocks.blocks(_read("docs", "tutorial.md"))) >= 8
 
 
+def test_a_gallery_job_that_fails_runs_once_more_and_then_fails_the_build(tmp_path, monkeypatch):
+    """A job that fails once (the first try leaves a marker) passes on its second try, what the
+    first try printed kept beside; a job that always fails stops the build with the ends of its
+    stderr and stdout, and the note when stderr is empty."""
+    import cfcontact_docs
+    from sphinx.errors import ExtensionError
+
+    marker = tmp_path / "tried"
+    once = ("import os, sys; m = sys.argv[1]; print('hello from try', flush=True)\n"
+            "if not os.path.exists(m): open(m, 'w').close(); sys.exit(1)\n"
+            "open(os.path.join(sys.argv[2], 'result.txt'), 'w').write('ok')")
+    monkeypatch.setattr(cfcontact_docs, "JOBS", {
+        "flaky": (["-c", once, str(marker), "{out}"], "fails once", ()),
+        "fine": (["-c", "print('fine')"], "passes", ())})
+    stage = tmp_path / "stage"
+    cfcontact_docs.run_gallery(str(stage), "force", 2)
+    assert (stage / "flaky" / "result.txt").read_text() == "ok"
+    assert "hello from try" in (stage / "flaky" / "try1-stdout.txt").read_text()
+    assert (stage / "flaky" / ".stamp").is_file() and (stage / "fine" / ".stamp").is_file()
+
+    monkeypatch.setattr(cfcontact_docs, "JOBS", {
+        "broken": (["-c", "import sys; print('partial table'); sys.exit(3)"], "always fails", ())})
+    with pytest.raises(ExtensionError) as info:
+        cfcontact_docs.run_gallery(str(stage), "force", 2)
+    text = str(info.value)
+    assert "broken" in text and "exited with 3" in text
+    assert "(nothing on stderr)" in text and "partial table" in text
+    assert not (stage / "broken" / ".stamp").exists() and (stage / "broken" / "try1-stdout.txt").is_file()
+
+
 def test_docstring_entries_become_definition_lists():
     from cfcontact_docs import docstring_lines
 
