@@ -171,6 +171,7 @@ def _measure_path(spec, res, system, solver, path, branch_times, dump):
                start=path.stats.get("start"), homotopy_transitions=path.stats.get("homotopy_transitions", 0),
                degenerate_points=path.stats.get("degenerate_points", 0),
                max_vanishing=path.stats.get("max_vanishing", 0), branch_points=path.stats.get("branch_points", 0),
+               backtracks=path.stats.get("backtracks", 0),
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message[:300]} for e in path.events][:10],
                stage="verify")
     degenerate = [i for i, t in enumerate(path.transitions) if t.pivots]
@@ -331,7 +332,8 @@ def _random_loads(build, friction, paths, seed0, log):
             path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
             rec = {"status": path.status, "transitions": len(path.transitions), "folds": len(path.folds),
                    "start": path.stats.get("start"), "degenerate_points": path.stats.get("degenerate_points", 0),
-                   "homotopy_transitions": path.stats.get("homotopy_transitions", 0)}
+                   "homotopy_transitions": path.stats.get("homotopy_transitions", 0),
+                   "backtracks": path.stats.get("backtracks", 0)}
         except cfcontact.CfcontactError as exc:
             rec = {"status": "start failure", "error": str(exc)[:200], "transitions": 0}
         rec["time"] = time.perf_counter() - t0
@@ -364,6 +366,7 @@ def _summary(recs) -> dict:
     return {"runs": len(recs), "status": st, "transitions_total": int(sum(r["transitions"] for r in recs)),
             "transitions_max": int(max(r["transitions"] for r in recs)),
             "degenerate_points": int(sum(r.get("degenerate_points", 0) for r in recs)),
+            "backtracks": int(sum(r.get("backtracks", 0) for r in recs)),
             "time_total": float(times.sum()), "time_median": float(np.median(times)),
             "starts": {k: len(v) for k, v in starts.items()},
             "homotopy_start_median_time": float(np.median(hom)) if hom else None,

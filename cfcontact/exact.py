@@ -128,6 +128,12 @@ START_ENUMERATION_MAX_NODES = 8
 FORM_AT_END_LIMIT = 2 ** 28
 #: Transition cap of the homotopy start (independent of the path's max_transitions).
 HOMOTOPY_MAX_TRANSITIONS = 1000000
+#: A path that ends "cycling" or "stuck" goes back to its latest branch point with an untried
+#: alternative and follows that one, at most this many times (see _backtrack).
+MAX_BACKTRACKS = 16
+#: The statuses a path backtracks from: a numerical inconsistency or a point it cannot cross,
+#: not a property of the problem (a closed curve of solutions) nor a limit the user set.
+BACKTRACK_FROM = ("cycling", "stuck")
 
 OPEN, STICK, SLIP_P, SLIP_M = 0, 1, 2, 3
 _A, _BP, _BM = 0, 1, 2
@@ -1439,12 +1445,17 @@ class ExactStepper(Stepper):
         tree = self.opts.tree and status in ("completed", "closed_loop", "stuck", "cycling")
         if tree:
             _follow_all(self.system, path, self.opts, self.solver)
+        if status in BACKTRACK_FROM:
+            status = _backtrack(self.system, path, self.opts, self.solver, status)
         if path.lazy and getattr(self.solver, "size", 1) > 1:
             _form_under_mpi(path, self.solver)
         path.status = status
         self._update_stats()
         if tree:
             path.stats["tree"] = True
+        backtracks = sum(1 for e in path.events if e.kind == "backtrack")
+        if backtracks:
+            path.stats["backtracks"] = backtracks
         path.resume_state = self.walk.state() if status == "stopped by callback" else None
         log.info("exact path: %s", path)
         return path
@@ -1695,7 +1706,9 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     the single pivots of the rule (``Transition.pivots``).  Status "completed" (alpha range left),
     "stuck" (a point that could not be crossed, see events), "closed_loop" (the path came back to
     its first branch: a closed curve of solutions), "cycling" (a branch entered twice: a numerical
-    inconsistency, see events), "max_transitions" or "stopped by callback".  ``path.stats`` adds
+    inconsistency, see events), "max_transitions" or "stopped by callback".  A path that would end
+    "cycling" or "stuck" first backtracks to its branch points' untried alternatives (see
+    :func:`_backtrack`; ``backtrack`` events, ``path.stats["backtracks"]``).  ``path.stats`` adds
     ``start`` (how the start was found: "ssnm"; where SSNM does not converge, the exact method's
     homotopy from the frictionless solution, "frictionless", or from the all-open state,
     "homotopy"; "enumeration", "start_sets"), ``degenerate_points``, ``pivots``,
@@ -1783,6 +1796,56 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
               "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}
     ev.data.setdefault("followed", {})[str(alternative)] = result
     return result
+
+
+def _backtrack(system, path, options, solver, status: str) -> str:
+    """The status of a path that ended ``status`` (one of BACKTRACK_FROM) after backtracking.
+
+    Depth first: the latest branch point (``branch_point`` event, those found by earlier tries
+    included) with an alternative neither chosen nor followed yet has that alternative followed
+    (:func:`follow_alternative`, entering no branch the path has already traversed: such a try
+    ends "joined").  The first try that leaves the alpha range ends the search and the path is
+    "completed"; at most MAX_BACKTRACKS tries.  Every try is a ``backtrack`` event (the branch
+    point's event, the alternative, the try's status and branches), counted in
+    ``path.stats["backtracks"]``; the branches of failed tries stay in the path (a tree: their
+    points are solutions, as a followed alternative's are).  In a tree (``options.tree``) the
+    alternatives have all been followed already: the path is "completed" when one of them
+    completed, and nothing more is tried."""
+    if options.tree:
+        done = [(i, k) for i, ev in enumerate(path.events) if ev.kind == "branch_point"
+                for k, r in ev.data.get("followed", {}).items() if r["status"] == "completed"]
+        if done:
+            i, k = done[-1]
+            path.events.append(PathEvent("backtrack", path.events[i].alpha, f"the path ended {status!r}; alternative "
+                                         f"{k} of the branch point of event {i} (followed in the tree) completes it",
+                                         path.events[i].branch, {"event": i, "alternative": int(k),
+                                                                 "status": "completed", "from": status}))
+            return "completed"
+        return status
+    span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
+    ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
+    for b in path.branches:
+        ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()), (b.orientation, b.alpha_enter))
+    tries = 0
+    while tries < MAX_BACKTRACKS:
+        untried = next(((i, k) for i in range(len(path.events) - 1, -1, -1) if path.events[i].kind == "branch_point"
+                        for k, alt in enumerate(path.events[i].data["alternatives"])
+                        if not alt["chosen"] and str(k) not in path.events[i].data.get("followed", {})), None)
+        if untried is None:
+            break
+        i, k = untried
+        tries += 1
+        ev = path.events[i]
+        res = follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
+        log.info("exact path ended %r: backtracked to the branch point at alpha=%.12g, alternative %d: %s",
+                 status, ev.alpha, k, res["status"])
+        path.events.append(PathEvent("backtrack", ev.alpha, f"the path ended {status!r}; followed alternative {k} "
+                                     f"of the branch point of event {i}: {res['status']}", ev.branch,
+                                     {"event": i, "alternative": k, "status": res["status"], "from": status,
+                                      "branches": res["branches"]}))
+        if res["status"] == "completed":
+            return "completed"
+    return status
 
 
 def _follow_all(system, path, options, solver):

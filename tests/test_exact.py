@@ -189,6 +189,66 @@ def test_branch_points_reported_and_followed():
         follow_alternative(system, path, len(path.events) + 3, 0)
 
 
+def _fail_after_first_branch_point(monkeypatch, ex, status="cycling"):
+    """Fault injection: the first walk to step after a branch point (the main walk: a start's
+    homotopy has none, the alternatives come later) ends ``status`` there, as a walk that met a
+    numerical inconsistency."""
+    from cfcontact.solution_path import PathEvent
+
+    real_step = ex._Walk.step
+    seen = {}
+
+    def step(self):
+        if "fired" not in seen and any(e.kind == "branch_point" for e in self.path.events):
+            seen["fired"] = self.branch.index
+            self.branch.alpha_exit = self.alpha
+            self.path.events.append(PathEvent(status, self.alpha, "injected", self.branch.index, {}))
+            return "status", status
+        return real_step(self)
+
+    monkeypatch.setattr(ex._Walk, "step", step)
+    return seen
+
+
+@pytest.mark.parametrize("status", ["cycling", "stuck"])
+def test_a_path_that_cycles_after_a_branch_point_backtracks_to_an_alternative(monkeypatch, status):
+    """A main path that ends "cycling" or "stuck" after a branch point goes back to the latest
+    branch point with an untried alternative and follows it (depth first, at most
+    MAX_BACKTRACKS tries): the path completes, each try is a "backtrack" event, every transition
+    verifies, and every solution on the tree at alpha = 0.45 is one of the enumerated ones."""
+    import cfcontact.exact as ex
+
+    system = two_identical_nodes()
+    seen = _fail_after_first_branch_point(monkeypatch, ex, status)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert "fired" in seen and path.events[-1].kind == "backtrack"
+    assert path.status == "completed" and path.stats["backtracks"] >= 1
+    tries = [e for e in path.events if e.kind == "backtrack"]
+    assert len(tries) == path.stats["backtracks"] and tries[-1].data["status"] == "completed"
+    assert all(t.data["from"] == status for t in tries)
+    assert all(t.data["status"] != "completed" for t in tries[:-1])
+    last = path.branches[tries[-1].data["branches"][-1]]
+    assert last.alpha_exit in (0.0, 1.0)
+    assert_transitions_verify(system, path, 1e-12)
+    exact = enumerate_solutions(system, 0.45)
+    for sol in path.solutions_at(0.45):
+        lam = np.concatenate([sol.lam_n, sol.lam_t])
+        assert min(np.abs(lam - np.concatenate([e.lam_n, e.lam_t])).max() for e in exact) < 1e-9
+
+    # a tree has followed every alternative: one that completed completes the path
+    _fail_after_first_branch_point(monkeypatch, ex, status)
+    tree = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
+    assert tree.status == "completed" and tree.stats["backtracks"] == 1 and tree.events[-1].kind == "backtrack"
+    sols = tree.solutions_at(0.45)  # the failed branch is cut: at most the 9, each one of them
+    assert len(sols) <= 9 and all(min(np.abs(np.concatenate([x.lam_n - e.lam_n, x.lam_t - e.lam_t])).max()
+                                      for e in exact) < 1e-9 for x in sols)
+
+    monkeypatch.setattr(ex, "MAX_BACKTRACKS", 0)  # without backtracking the path ends as it failed
+    _fail_after_first_branch_point(monkeypatch, ex, status)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == status and "backtracks" not in path.stats
+
+
 def _traversed_before(monkeypatch, ex, only_rule=False):
     """Make the first branch point of a path look reached a second time: for its decision, the
     branch of the rule's continuation is marked traversed (``only_rule``: and the rule's is the
