@@ -137,11 +137,12 @@ def test_bench_parts_c_and_d_quick(tmp_path):
     assert models == {"strip", "cylinder", "punch", "closing"}
     for r in d["rows"]:
         assert r["status"] == "completed" and r["worst_residual"] < 1e-9, r
+        assert r["backtracks"] == 0, r  # completed without going back to a branch point
     closing = [r for r in d["rows"] if r["model"] == "closing"]
     assert all(r["max_vanishing"] >= r["m"] // 2 for r in closing), closing  # the whole interface at once
     for name in ("demo", "blocks"):
         s = d["random_loads"][name]["summary"]
-        assert s["runs"] == 4 and s["status"] == {"completed": 4}, s
+        assert s["runs"] == 4 and s["status"] == {"completed": 4} and s["backtracks"] == 0, s
     text = bs.table(c["rows"] + d["rows"])
     assert "s/trans." in text and "completed" in text
 
