@@ -41,10 +41,37 @@ refined = CondensedSolver(system, SolverOptions(refine=True))
 check_against_full(refined, 3)
 rpath = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=refined)
 assert rpath.status == "completed", rpath.events
+
+
+class _Patch:  # the test's fault injection needs only monkeypatch.setattr
+    def setattr(self, obj, name, value):
+        setattr(obj, name, value)
+
+
+def backtracked():
+    """A path that ends "cycling" after its first branch point (fault injection, as in
+    test_exact.py) and backtracks: its branches' keys, the tries' statuses, its status."""
+    import cfcontact.exact as ex
+    from test_exact import _fail_after_first_branch_point, two_identical_nodes
+
+    step = ex._Walk.step
+    try:
+        _fail_after_first_branch_point(_Patch(), ex)
+        two = two_identical_nodes()
+        bpath = cfcontact.trace_path(two, 0.0, 1.0, method="exact", solver=CondensedSolver(two))
+    finally:
+        ex._Walk.step = step
+    return {"status": bpath.status, "keys": [canonical_codes(b.sets, 2.5).tolist() for b in bpath.branches],
+            "tries": [e.data["status"] for e in bpath.events if e.kind == "backtrack"],
+            "alphas": [t.alpha for t in bpath.transitions]}
+
+
+backtrack = backtracked()
 if comm.rank == 0:
     with open(sys.argv[1], "w") as fh:
         json.dump({"size": comm.size, "keys": [canonical_codes(b.sets, 1.7).tolist() for b in path.branches],
                    "kinds": [t.kind for t in path.transitions], "alphas": [t.alpha for t in path.transitions],
                    "ys": ys, "nsol": nsol, "refine_steps": refined.refine_steps,
                    "refined_kinds": [t.kind for t in rpath.transitions],
-                   "refined_alphas": [t.alpha for t in rpath.transitions], "factorizations": solver.stats.factorizations}, fh)
+                   "refined_alphas": [t.alpha for t in rpath.transitions], "factorizations": solver.stats.factorizations,
+                   "backtrack": backtrack}, fh)

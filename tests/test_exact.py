@@ -457,6 +457,11 @@ def test_condensed_and_exact_under_mpi(run_mpi, tmp_path):
     assert got["refine_steps"] >= 1 and ref["refine_steps"] >= 1
     assert got["refined_kinds"] == ref["refined_kinds"] == ref["kinds"]
     assert np.allclose(got["refined_alphas"], ref["refined_alphas"], rtol=0, atol=1e-10)
+    # backtracking from a path that failed after a branch point: the same tries and tree
+    assert ref["backtrack"]["status"] == "completed" and ref["backtrack"]["tries"][-1] == "completed"
+    for key in ("status", "keys", "tries"):
+        assert got["backtrack"][key] == ref["backtrack"][key], key
+    assert np.allclose(got["backtrack"]["alphas"], ref["backtrack"]["alphas"], rtol=0, atol=1e-10)
 
 
 # -------------------------------------------------------------- property-based
