@@ -29,6 +29,7 @@ import traceback
 
 from cfcontact.case import CaseError, check_size, load_case, parse_component, python_sigint, reference_text
 from cfcontact.errors import CfcontactError, InputError
+from cfcontact.interrupts import caused_by_interrupt
 from cfcontact.options import ALPHA_LIMIT
 from cfcontact.report import format_report, path_report
 from cfcontact.run import (
@@ -215,16 +216,10 @@ def _run_case(args, case, run, stops, t_start):
                        f"left no resume state: start over with cfcontact run --force {again}")
         return EXIT_INTERRUPTED if stop.interrupted else EXIT_STOPPED
     except KeyboardInterrupt:
-        with _sigint_ignored():
-            progress.done()
-            if run.abandon(interrupted=True):
-                print(f"cfcontact run: interrupted; the checkpoint in {run.partial} is kept: continue with: "
-                      f"cfcontact run --resume {again}", file=sys.stderr, flush=True)
-            else:
-                print("cfcontact run: interrupted before the path was traced; nothing to resume (run again to "
-                      "start over)", file=sys.stderr, flush=True)
-        return EXIT_INTERRUPTED
+        return _run_interrupted(run, progress, again)
     except BaseException as exc:
+        if isinstance(exc, Exception) and caused_by_interrupt(exc):  # a Ctrl-C a library re-raised as another error
+            return _run_interrupted(run, progress, again)
         with _sigint_ignored():
             progress.done()
             if run.abandon() and not isinstance(exc, InputError):  # bad input: its one message says it all
@@ -238,6 +233,19 @@ def _run_case(args, case, run, stops, t_start):
                f"transitions ({s['folds']} folds), max multiplicity {s['max_multiplicity']}; wrote {run.out}/ "
                f"({', '.join(files)})")
     return EXIT_OK
+
+
+def _run_interrupted(run, progress, again) -> int:
+    """After a Ctrl-C in ``run``: keep the checkpoint (or remove what cannot be resumed), one line."""
+    with _sigint_ignored():
+        progress.done()
+        if run.abandon(interrupted=True):
+            print(f"cfcontact run: interrupted; the checkpoint in {run.partial} is kept: continue with: "
+                  f"cfcontact run --resume {again}", file=sys.stderr, flush=True)
+        else:
+            print("cfcontact run: interrupted before the path was traced; nothing to resume (run again to "
+                  "start over)", file=sys.stderr, flush=True)
+    return EXIT_INTERRUPTED
 
 
 def _load_saved(dirname):
@@ -685,6 +693,9 @@ def _main(argv) -> int:
             print(f"cfcontact {args.command}: interrupted", file=sys.stderr, flush=True)
             return EXIT_INTERRUPTED
         except Exception as exc:
+            if caused_by_interrupt(exc):  # a Ctrl-C that a library re-raised as another error
+                print(f"cfcontact {args.command}: interrupted", file=sys.stderr, flush=True)
+                return EXIT_INTERRUPTED
             if args.verbose:
                 traceback.print_exc()
             kind = "" if isinstance(exc, CfcontactError) else f"{type(exc).__name__}: "

@@ -20,6 +20,22 @@ def python_sigint():
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a KeyboardInterrupt or was raised from one (its ``__cause__`` or
+    ``__context__`` chain holds one): a Ctrl-C that Python or a library turned into another
+    exception.  Python 3.11 wraps any exception raised in ``__set_name__`` in a RuntimeError
+    ("Error calling __set_name__ ..."), so a Ctrl-C that lands while a class body of a module
+    being imported runs (pyparsing's, under setuptools, on the JIT's first use) reaches the
+    program as that RuntimeError."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 @contextlib.contextmanager
 def sigint_deferred():
     """Context: a Ctrl-C while heavy libraries are imported is raised after them, at a clean point.
