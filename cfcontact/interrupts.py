@@ -25,8 +25,8 @@ def caused_by_interrupt(exc: BaseException) -> bool:
     ``__context__`` chain holds one): a Ctrl-C that Python or a library turned into another
     exception.  Python 3.11 wraps any exception raised in ``__set_name__`` in a RuntimeError
     ("Error calling __set_name__ ..."), so a Ctrl-C that lands while a class body of a module
-    being imported runs (pyparsing's, which ufl imports through pkg_resources when dolfinx is
-    imported, on Debian 12) reaches the program as that RuntimeError."""
+    being imported runs (pyparsing's ``Regex``, which matplotlib imports when a run's plots are
+    written) reaches the program as that RuntimeError."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):

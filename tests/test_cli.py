@@ -362,9 +362,9 @@ def test_time_limit_and_resume(tmp_path, small_run):
 
 def test_a_ctrl_c_that_a_library_re_raised_is_an_interrupt(tmp_path, monkeypatch, capsys):
     """A Ctrl-C that lands in a class body's ``__set_name__`` while a module is imported reaches
-    the program as RuntimeError("Error calling __set_name__ ...") on Python 3.11 (seen once during
-    the model's build: pyparsing, which ufl imports through pkg_resources with dolfinx): it is an
-    interrupt, exit 130 with the interrupt line, not "failed" with exit 1."""
+    the program as RuntimeError("Error calling __set_name__ ...") on Python 3.11 (seen once in
+    the random-interrupt test: pyparsing's Regex, which matplotlib imports when the plots are
+    written): it is an interrupt, exit 130 with the interrupt line, not "failed" with exit 1."""
     from cfcontact.interrupts import caused_by_interrupt
 
     class Descriptor:
