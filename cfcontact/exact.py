@@ -1822,15 +1822,10 @@ def _backtrack(system, path, options, solver, status: str) -> str:
                                                                  "status": "completed", "from": status}))
             return "completed"
         return status
-    span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
-    ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
-    for b in path.branches:
-        ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()), (b.orientation, b.alpha_enter))
+    ctx = _tree_context(system, path, options, solver)
     tries = 0
     while tries < MAX_BACKTRACKS:
-        untried = next(((i, k) for i in range(len(path.events) - 1, -1, -1) if path.events[i].kind == "branch_point"
-                        for k, alt in enumerate(path.events[i].data["alternatives"])
-                        if not alt["chosen"] and str(k) not in path.events[i].data.get("followed", {})), None)
+        untried = next(((i, k) for i in range(len(path.events) - 1, -1, -1) for k in _untried(path.events[i])), None)
         if untried is None:
             break
         i, k = untried
@@ -1848,20 +1843,32 @@ def _backtrack(system, path, options, solver, status: str) -> str:
     return status
 
 
-def _follow_all(system, path, options, solver):
-    """Follow every alternative of every branch point of ``path`` (also those found on the way).
-    The sub-runs take no callback (a checkpoint of the main run is taken before)."""
+def _tree_context(system, path, options, solver) -> _Context:
+    """The run context of sub-runs that grow ``path`` into a tree: every branch of the path counts
+    as traversed, so a sub-run that reaches one ends "joined"."""
     span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
     ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
     for b in path.branches:
         ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()),
                                (b.orientation, b.alpha_enter))
+    return ctx
+
+
+def _untried(ev) -> list:
+    """The alternatives of a branch_point event neither chosen nor followed yet (their indices)."""
+    if ev.kind != "branch_point":
+        return []
+    followed = ev.data.get("followed", {})
+    return [k for k, alt in enumerate(ev.data["alternatives"]) if not alt["chosen"] and str(k) not in followed]
+
+
+def _follow_all(system, path, options, solver):
+    """Follow every alternative of every branch point of ``path`` (also those found on the way).
+    The sub-runs take no callback (a checkpoint of the main run is taken before)."""
+    ctx = _tree_context(system, path, options, solver)
     i = 0
     while i < len(path.events):
-        ev = path.events[i]
-        if ev.kind == "branch_point":
-            for k, alt in enumerate(ev.data["alternatives"]):
-                if not alt["chosen"] and str(k) not in ev.data.get("followed", {}):
-                    follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
+        for k in _untried(path.events[i]):
+            follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
         i += 1
     return path

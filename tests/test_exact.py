@@ -231,17 +231,18 @@ def test_a_path_that_cycles_after_a_branch_point_backtracks_to_an_alternative(mo
     assert last.alpha_exit in (0.0, 1.0)
     assert_transitions_verify(system, path, 1e-12)
     exact = enumerate_solutions(system, 0.45)
-    for sol in path.solutions_at(0.45):
-        lam = np.concatenate([sol.lam_n, sol.lam_t])
-        assert min(np.abs(lam - np.concatenate([e.lam_n, e.lam_t])).max() for e in exact) < 1e-9
+
+    def enumerated(sol):  # one of the enumerated solutions, to 1e-9 in the multipliers
+        return min(np.abs(np.concatenate([sol.lam_n - e.lam_n, sol.lam_t - e.lam_t])).max() for e in exact) < 1e-9
+
+    assert all(enumerated(sol) for sol in path.solutions_at(0.45))
 
     # a tree has followed every alternative: one that completed completes the path
     _fail_after_first_branch_point(monkeypatch, ex, status)
     tree = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
     assert tree.status == "completed" and tree.stats["backtracks"] == 1 and tree.events[-1].kind == "backtrack"
     sols = tree.solutions_at(0.45)  # the failed branch is cut: at most the 9, each one of them
-    assert len(sols) <= 9 and all(min(np.abs(np.concatenate([x.lam_n - e.lam_n, x.lam_t - e.lam_t])).max()
-                                      for e in exact) < 1e-9 for x in sols)
+    assert len(sols) <= 9 and all(enumerated(x) for x in sols)
 
     monkeypatch.setattr(ex, "MAX_BACKTRACKS", 0)  # without backtracking the path ends as it failed
     _fail_after_first_branch_point(monkeypatch, ex, status)
