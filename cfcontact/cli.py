@@ -215,11 +215,18 @@ def _run_case(args, case, run, stops, t_start):
             _say(args, f"cfcontact: {stop.reason}; the partial path is in {ck} (cfcontact info {run.partial}); it "
                        f"left no resume state: start over with cfcontact run --force {again}")
         return EXIT_INTERRUPTED if stop.interrupted else EXIT_STOPPED
-    except KeyboardInterrupt:
-        return _run_interrupted(run, progress, again)
     except BaseException as exc:
-        if isinstance(exc, Exception) and caused_by_interrupt(exc):  # a Ctrl-C a library re-raised as another error
-            return _run_interrupted(run, progress, again)
+        # a Ctrl-C, or one that a library re-raised as another error (not SystemExit and its kin)
+        if isinstance(exc, (KeyboardInterrupt, Exception)) and caused_by_interrupt(exc):
+            with _sigint_ignored():
+                progress.done()
+                if run.abandon(interrupted=True):
+                    print(f"cfcontact run: interrupted; the checkpoint in {run.partial} is kept: continue with: "
+                          f"cfcontact run --resume {again}", file=sys.stderr, flush=True)
+                else:
+                    print("cfcontact run: interrupted before the path was traced; nothing to resume (run again "
+                          "to start over)", file=sys.stderr, flush=True)
+            return EXIT_INTERRUPTED
         with _sigint_ignored():
             progress.done()
             if run.abandon() and not isinstance(exc, InputError):  # bad input: its one message says it all
@@ -233,19 +240,6 @@ def _run_case(args, case, run, stops, t_start):
                f"transitions ({s['folds']} folds), max multiplicity {s['max_multiplicity']}; wrote {run.out}/ "
                f"({', '.join(files)})")
     return EXIT_OK
-
-
-def _run_interrupted(run, progress, again) -> int:
-    """After a Ctrl-C in ``run``: keep the checkpoint (or remove what cannot be resumed), one line."""
-    with _sigint_ignored():
-        progress.done()
-        if run.abandon(interrupted=True):
-            print(f"cfcontact run: interrupted; the checkpoint in {run.partial} is kept: continue with: "
-                  f"cfcontact run --resume {again}", file=sys.stderr, flush=True)
-        else:
-            print("cfcontact run: interrupted before the path was traced; nothing to resume (run again to "
-                  "start over)", file=sys.stderr, flush=True)
-    return EXIT_INTERRUPTED
 
 
 def _load_saved(dirname):
@@ -689,11 +683,8 @@ def _main(argv) -> int:
         except (CaseError, InputError) as exc:
             print(f"cfcontact {args.command}: error: {exc}", file=sys.stderr, flush=True)
             return EXIT_INPUT
-        except KeyboardInterrupt:
-            print(f"cfcontact {args.command}: interrupted", file=sys.stderr, flush=True)
-            return EXIT_INTERRUPTED
-        except Exception as exc:
-            if caused_by_interrupt(exc):  # a Ctrl-C that a library re-raised as another error
+        except (KeyboardInterrupt, Exception) as exc:
+            if caused_by_interrupt(exc):  # a Ctrl-C, or one that a library re-raised as another error
                 print(f"cfcontact {args.command}: interrupted", file=sys.stderr, flush=True)
                 return EXIT_INTERRUPTED
             if args.verbose:
