@@ -246,7 +246,7 @@ def run_gallery(stage: str, mode: str = "1", parallel: int = 2) -> None:
                     os.replace(os.path.join(out, f"{stream}.txt"),
                                os.path.join(out, f"try{tries[name]}-{stream}.txt"))
                 for entry in os.listdir(out):  # the next try starts from an empty folder
-                    if not entry.startswith("try"):
+                    if not re.fullmatch(r"try\d+-(stdout|stderr)\.txt", entry):
                         full = os.path.join(out, entry)
                         if os.path.isdir(full):
                             shutil.rmtree(full)
