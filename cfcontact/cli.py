@@ -201,6 +201,11 @@ def _run_case(args, case, run, stops, t_start):
         _default_sigpipe()
         if path.status != "completed":
             _warn(args, f"the path ended with status {path.status!r} (see the events in summary.json / info)")
+        if not run.traced and runner.reason is not None:  # a stop after the main run: the tree or the tries
+            left = path.stats.get("untried_alternatives")
+            _warn(args, f"{runner.reason} after the main run: " + (
+                f"the tree is incomplete, {left} alternative(s) not followed" if left else
+                "the backtracking was cut short") + " (see the events in summary.json / info)")
         files = run.finish(path, lambda text: _warn(args, text), system)
     except Stopped as stop:
         progress.done()

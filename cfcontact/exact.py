@@ -63,7 +63,7 @@ from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
 from cfcontact.start import check_request, resume_parts, start_point
-from cfcontact.stepper import StartProgress, Stepper, check_monitor
+from cfcontact.stepper import StartProgress, Stepper, check_monitor, stop_only
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -1443,16 +1443,20 @@ class ExactStepper(Stepper):
         self.finished = True
         path = self.path
         tree = self.opts.tree and status in ("completed", "closed_loop", "stuck", "cycling")
+        stop = stop_only(self.callback)  # the run's callback stops the tree and the tries, too
         if tree:
-            _follow_all(self.system, path, self.opts, self.solver)
+            _follow_all(self.system, path, self.opts, self.solver, stop)
         if status in BACKTRACK_FROM:
-            status = _backtrack(self.system, path, self.opts, self.solver, status)
+            status = _backtrack(self.system, path, self.opts, self.solver, status, stop)
         if path.lazy and getattr(self.solver, "size", 1) > 1:
             _form_under_mpi(path, self.solver)
         path.status = status
         self._update_stats()
         if tree:
             path.stats["tree"] = True
+            stopped = [e for e in path.events if e.kind == "tree_stopped"]
+            if stopped:
+                path.stats["untried_alternatives"] = stopped[-1].data["untried"]
         backtracks = sum(1 for e in path.events if e.kind == "backtrack")
         if backtracks:
             path.stats["backtracks"] = backtracks
@@ -1798,7 +1802,7 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     return result
 
 
-def _backtrack(system, path, options, solver, status: str) -> str:
+def _backtrack(system, path, options, solver, status: str, callback=None) -> str:
     """The status of a path that ended ``status`` (one of BACKTRACK_FROM) after backtracking.
 
     Depth first: the latest branch point (``branch_point`` event, those found by earlier tries
@@ -1810,7 +1814,8 @@ def _backtrack(system, path, options, solver, status: str) -> str:
     ``path.stats["backtracks"]``; the branches of failed tries stay in the path (a tree: their
     points are solutions, as a followed alternative's are).  In a tree (``options.tree``) the
     alternatives have all been followed already: the path is "completed" when one of them
-    completed, and nothing more is tried."""
+    completed, and nothing more is tried.  ``callback`` sees the tries' points; a truthy answer
+    ends the try ("stopped by callback") and the backtracking: the path keeps ``status``."""
     if options.tree:
         done = [(i, k) for i, ev in enumerate(path.events) if ev.kind == "branch_point"
                 for k, r in ev.data.get("followed", {}).items() if r["status"] == "completed"]
@@ -1831,7 +1836,7 @@ def _backtrack(system, path, options, solver, status: str) -> str:
         i, k = untried
         tries += 1
         ev = path.events[i]
-        res = follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
+        res = follow_alternative(system, path, i, k, solver=ctx.solver, callback=callback, _ctx=ctx)
         log.info("exact path ended %r: backtracked to the branch point at alpha=%.12g, alternative %d: %s",
                  status, ev.alpha, k, res["status"])
         path.events.append(PathEvent("backtrack", ev.alpha, f"the path ended {status!r}; followed alternative {k} "
@@ -1840,6 +1845,8 @@ def _backtrack(system, path, options, solver, status: str) -> str:
                                       "branches": res["branches"]}))
         if res["status"] == "completed":
             return "completed"
+        if res["status"] == "stopped by callback":
+            break
     return status
 
 
@@ -1862,13 +1869,24 @@ def _untried(ev) -> list:
     return [k for k, alt in enumerate(ev.data["alternatives"]) if not alt["chosen"] and str(k) not in followed]
 
 
-def _follow_all(system, path, options, solver):
+def _follow_all(system, path, options, solver, callback=None):
     """Follow every alternative of every branch point of ``path`` (also those found on the way).
-    The sub-runs take no callback (a checkpoint of the main run is taken before)."""
+    ``callback`` sees the sub-runs' points (they cannot be checkpointed: a checkpoint of the main
+    run is taken before); a truthy answer stops the sub-run and the tree there: a
+    ``tree_stopped`` event, and ``path.stats["untried_alternatives"]`` counts the alternatives
+    left (:func:`follow_alternative` follows them one by one)."""
     ctx = _tree_context(system, path, options, solver)
     i = 0
     while i < len(path.events):
         for k in _untried(path.events[i]):
-            follow_alternative(system, path, i, k, solver=ctx.solver, _ctx=ctx)
+            ev = path.events[i]
+            res = follow_alternative(system, path, i, k, solver=ctx.solver, callback=callback, _ctx=ctx)
+            if res["status"] == "stopped by callback":
+                left = sum(len(_untried(e)) for e in path.events)
+                path.events.append(PathEvent(
+                    "tree_stopped", ev.alpha, f"the callback stopped the tree while it followed alternative {k} of "
+                    f"the branch point of event {i}; {left} alternative(s) not followed (follow_alternative "
+                    f"follows them)", ev.branch, {"event": i, "alternative": k, "untried": left}))
+                return path
         i += 1
     return path

@@ -70,6 +70,7 @@ class Stepper:
     finished = False  # the run has ended (advance returns None from now on)
     done = False  # the last accepted point ended the path: the next advance finishes it "completed"
     _pending_point = None  # index of an accepted point not handed out yet (the start point), or None
+    callback = None  # the callback of :meth:`run` (work after the run's end, e.g. a tree's, may be stopped by it)
 
     def _start_clock(self, before: Optional[dict] = None):
         """Counters of this run start now; ``before``: the stats of the stopped run it continues."""
@@ -118,6 +119,7 @@ class Stepper:
 
     def run(self, callback: Optional[Callable] = None, save: Optional[Callable] = None):
         """Advance to the end (or until the callback stops the run); returns the path."""
+        self.callback = callback
         while True:
             index = self.advance()
             if index is None:
@@ -131,3 +133,16 @@ class Stepper:
                     save(self.path, self.resume_state)
             elif action:
                 return self.stop()
+
+
+def stop_only(callback: Optional[Callable]) -> Optional[Callable]:
+    """``callback`` for work that cannot be checkpointed or resumed (sub-runs after a run's end):
+    its answer stops that work when it is a stop, and :data:`CHECKPOINT` counts as "go on"."""
+    if callback is None:
+        return None
+
+    def answer(point):
+        action = callback(point)
+        return bool(action) and action is not CHECKPOINT
+
+    return answer

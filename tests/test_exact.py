@@ -250,6 +250,59 @@ def test_a_path_that_cycles_after_a_branch_point_backtracks_to_an_alternative(mo
     assert path.status == status and "backtracks" not in path.stats
 
 
+def test_the_callback_stops_backtracking_and_checkpoints_do_not(monkeypatch):
+    """The run's callback also sees the backtracking tries' points: a stop (a time limit, a
+    Ctrl-C) ends the try and the backtracking there, the path keeps the status it failed with
+    (no resume state: a try cannot be resumed); CHECKPOINT, which a try cannot honour, lets it
+    go on to the completed path, and the save is called only by the main run."""
+    import cfcontact.exact as ex
+    from cfcontact.path import path_stepper
+    from cfcontact.options import AlphaSpan, PathOptions
+    from cfcontact.stepper import CHECKPOINT
+
+    system = two_identical_nodes()
+    seen = _fail_after_first_branch_point(monkeypatch, ex)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", callback=lambda pt: "fired" in seen)
+    tries = [e for e in path.events if e.kind == "backtrack"]
+    assert path.status == "cycling" and path.resume_state is None
+    assert len(tries) == 1 == path.stats["backtracks"] and tries[0].data["status"] == "stopped by callback"
+    assert_transitions_verify(system, path, 1e-12)
+
+    seen = _fail_after_first_branch_point(monkeypatch, ex)
+    saves = []
+    opts = PathOptions()
+    stepper = path_stepper(system, AlphaSpan.of(0.0, 1.0, opts), opts, "exact")
+    path = stepper.run(lambda pt: CHECKPOINT, lambda p, state: saves.append(("fired" in seen, state)))
+    assert path.status == "completed" and path.stats["backtracks"] >= 1
+    assert saves and not any(fired for fired, _ in saves)
+
+
+def test_the_callback_stops_a_tree_and_says_what_is_left():
+    """With tree=True the callback sees the alternatives' points too: a stop during them ends the
+    tree with a "tree_stopped" event; the main run's status stays, and
+    stats["untried_alternatives"] counts the alternatives that follow_alternative can still follow."""
+    system = two_identical_nodes()
+    main = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    nb = len(main.branches)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True, callback=lambda pt: pt.branch >= nb)
+    assert path.status == "completed" and path.resume_state is None
+    assert path.events[-1].kind == "tree_stopped"
+    left = [(i, k) for i, e in enumerate(path.events) for k in cfcontact.exact._untried(e)]
+    assert left and path.stats["untried_alternatives"] == len(left) == path.events[-1].data["untried"]
+    full = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True, callback=lambda pt: None)
+    assert "untried_alternatives" not in full.stats and len(full.branches) > len(path.branches)
+
+    # the command line's callback: a stop condition met while the tree grows stops it there
+    from cfcontact.run import Runner, StopConditions
+
+    runner = Runner(StopConditions(stop_after_transitions=len(main.transitions) + 1))
+    solver = cfcontact.CondensedSolver(system)
+    runner.begin(solver)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True, solver=solver, callback=runner.on_point)
+    assert runner.reason.startswith("stopped after") and path.events[-1].kind == "tree_stopped"
+    assert path.status == "completed" and len(path.branches) < len(full.branches)
+
+
 def _traversed_before(monkeypatch, ex, only_rule=False):
     """Make the first branch point of a path look reached a second time: for its decision, the
     branch of the rule's continuation is marked traversed (``only_rule``: and the rule's is the
