@@ -31,7 +31,7 @@ from cfcontact.case import CaseError, check_size, load_case, parse_component, py
 from cfcontact.errors import CfcontactError, InputError
 from cfcontact.interrupts import caused_by_interrupt
 from cfcontact.options import ALPHA_LIMIT
-from cfcontact.report import format_report, path_report
+from cfcontact.report import format_report, path_report, turned_back_text
 from cfcontact.run import (
     DEFAULT_CHECKPOINT_EVERY,
     CaseRun,
@@ -201,6 +201,9 @@ def _run_case(args, case, run, stops, t_start):
         _default_sigpipe()
         if path.status != "completed":
             _warn(args, f"the path ended with status {path.status!r} (see the events in summary.json / info)")
+        elif path.turned_back():
+            _warn(args, turned_back_text(path.reach(), path.alpha_start,
+                                         "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"))
         if not run.traced and runner.reason is not None:  # a stop after the main run: the tree or the tries
             left = path.stats.get("untried_alternatives")
             _warn(args, f"{runner.reason} after the main run: " + (

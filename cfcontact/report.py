@@ -144,10 +144,17 @@ def path_report(path, declared=None) -> dict:
         "folds": [t.alpha for t in path.folds],
         "multiplicity": [{"alpha_lo": a, "alpha_hi": b, "solutions": k} for a, b, k in path.multiplicity_intervals()],
         "max_multiplicity": mult, "alpha_of_max": at,
+        "reach": path.reach(), "turned_back": path.turned_back(),
         "events": [e.to_dict() for e in path.events], "stats": path.stats, "options": path.options,
         "contact": contact,
         "system_checksum": getattr(path, "system_checksum", None),
     })
+
+
+def turned_back_text(reach, start, par="alpha") -> str:
+    """What a path that completed without reaching its end means (see SolutionPath.turned_back)."""
+    return (f"the path turned back: it reaches {par} = {reach:.10g} at most and left its range at {par} = {start:g}; "
+            f"beyond {reach:.10g} no solution lies on it (solutions there, if any, are not connected to the start)")
 
 
 def format_report(rep, source) -> str:
@@ -162,6 +169,8 @@ def format_report(rep, source) -> str:
         lines.append(f"system checksum {rep['system_checksum']} (SHA-256 of n, m, K, N, T, f1, f2, friction, gap, rho)")
     if rep["alpha_of_max"] is not None:
         lines.append(f"max multiplicity {rep['max_multiplicity']} (at alpha = {rep['alpha_of_max']:.10g})")
+    if rep.get("turned_back"):
+        lines.append(turned_back_text(rep["reach"], rep["alpha_start"], par.split()[0]))
     lines.append("")
     if rep["transitions"]:
         lines.append("transitions:")

@@ -547,6 +547,23 @@ class SolutionPath:
             out.append(b)
         return out
 
+    def reach(self) -> float:
+        """The alpha farthest towards alpha_end that a branch of the path covers (nan without any)."""
+        ends = [e for b in self.branches for e in self.branch_extent(b) if np.isfinite(e)]
+        if not ends:
+            return float("nan")
+        return float(max(ends) if self.alpha_end >= self.alpha_start else min(ends))
+
+    def turned_back(self) -> bool:
+        """True when the path completed without reaching alpha_end: it folded back and left its
+        range on the side of alpha_start, so no solution on it lies beyond :meth:`reach` (the
+        solutions there, if any, are not connected to the start by this path)."""
+        if self.status != "completed":
+            return False
+        far, end = self.reach(), self.alpha_end
+        return bool(np.isfinite(far) and abs(far - end) > 1e-12 * max(1.0, abs(end))
+                    and (far < end if end >= self.alpha_start else far > end))
+
     def multiplicity(self, alpha: float) -> int:
         """Number of distinct solutions of the path at alpha."""
         return len(self._solution_branches(float(alpha)))
@@ -617,6 +634,7 @@ class SolutionPath:
                 "branches": len(self.branches), "transitions": len(self.transitions),
                 "transversal": sum(t.kind == "transversal" for t in self.transitions),
                 "folds": len(self.folds), "max_multiplicity": mult, "alpha_of_max": at,
+                "reach": self.reach(), "turned_back": self.turned_back(),
                 "events": len(self.events), **self.stats}
 
     def __repr__(self):

@@ -228,3 +228,27 @@ def test_seed_never_stores_a_point_it_cannot_verify():
     path = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
     assert "unverified_transition" in [e.kind for e in path.events]
     assert max(cfcontact.verify(system, y, a).worst() for a, y in path.points) <= 1e-10
+
+
+@pytest.mark.parametrize("method", ["exact", "seed"])
+def test_a_path_that_turns_back_says_so(method):
+    """A random model (m = 4, F = 3) whose path from alpha = 0 folds at alpha ~ 0.094 and leaves
+    its range at alpha = 0: status "completed", but turned_back() says it never reached alpha = 1,
+    reach() is the fold, and the report says so; at alpha = 0.5 the problem has a solution
+    (enumeration) that this path does not hold.  The one-node path reaches alpha = 1: not
+    turned back."""
+    from cfcontact.enumerate import enumerate_solutions
+    from cfcontact.report import format_report, path_report
+
+    system = random_system(4, 560, friction=3.0, coupling=10.0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method=method)
+    assert path.status == "completed" and path.turned_back()
+    fold = path.folds[-1].alpha
+    assert abs(path.reach() - fold) <= 1e-5 and 0.09 < fold < 0.1
+    assert not path.solutions_at(0.5) and enumerate_solutions(system, 0.5)
+    text = format_report(path_report(path), "mem")
+    assert f"the path turned back: it reaches alpha = {path.reach():.10g} at most" in text
+    assert path.summary()["turned_back"] is True
+
+    one = cfcontact.trace_path(one_node(), 0.0, 1.0, method=method)
+    assert one.status == "completed" and not one.turned_back() and one.reach() == 1.0
