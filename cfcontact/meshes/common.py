@@ -7,6 +7,8 @@ import math
 import operator
 import os
 
+import numpy as np
+
 from cfcontact.errors import GeometryError, InputError  # noqa: F401  (GeometryError: for the scripts)
 
 #: physical group numbers of every model (DESIGN.md; docs/geometry.md "Tag convention"); ``sym1`` /
@@ -267,25 +269,134 @@ def block_half(sk, s, zone, half_width, depth, parts):
     return c2, ax2
 
 
-def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist_min, growth, mesh=True):
-    """The common end of a mirror-symmetric model: recombination (quadrilaterals), synchronize,
-    symmetric meshing, refinement near ``contact_curves``, physical groups from ``parts``
-    ({name: [entities]}, names of TAGS), meshing.  Returns {name: (dim, number)}."""
+def triangle_size(size, cell):
+    """The size of the triangles that gmsh meshes for elements of ``size``: quadrilaterals come
+    from splitting each triangle in three (:func:`subdivide_to_quads`), which halves its edges."""
+    return 2.0 * size if cell == "quadrilateral" else size
+
+
+def curve_nodes(length, size, cell):
+    """setTransfiniteCurve's node count for a curve of ``length`` with elements of ``size``, at
+    least two (quadrilaterals: half as many segments, each split in two by subdivide_to_quads)."""
     if cell == "quadrilateral":
-        for surf in parts["body1"] + parts.get("body2", []):
-            gmsh.model.geo.mesh.setRecombine(2, surf)
+        return max(1, math.ceil(length / (2.0 * size))) + 1
+    return max(2, math.ceil(length / size)) + 1
+
+
+def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist_min, growth, mesh=True):
+    """The common end of a mirror-symmetric model: synchronize, symmetric meshing, refinement
+    near ``contact_curves``, physical groups from ``parts`` ({name: [entities]}, names of TAGS),
+    meshing.  Quadrilaterals: triangles of twice the size, each split into three
+    (:func:`subdivide_to_quads`; gmsh's recombination of these unstructured surfaces leaves
+    triangles, and its full-quad options fail on the mirrored halves).  Returns {name: (dim, number)}."""
     gmsh.model.geo.synchronize()
     sk.remove_centres(gmsh)
     sk.make_symmetric(gmsh)
-    refine_near(gmsh, contact_curves, size, size_far, dist_min, growth)
+    k = triangle_size(1.0, cell)
+    refine_near(gmsh, contact_curves, k * size, k * size_far, dist_min, growth)
     groups = {name: (TAGS[name][0], ents) for name, ents in parts.items()}
     created = add_physical_groups(gmsh, groups)
     if mesh:
         with field_sizes_only(gmsh):
             gmsh.model.mesh.generate(2)
         sk.mirror_nodes(gmsh)
+        if cell == "quadrilateral":
+            subdivide_to_quads(gmsh, mirrored=bool(sk.created[-1]))
         gmsh.model.mesh.renumberNodes()
     return created
+
+
+def subdivide_to_quads(gmsh, mirrored=False):
+    """Split every linear triangle of the model's mesh into three quadrilaterals (its vertices,
+    edge midpoints and centroid) and every line element into two: an all-quadrilateral mesh with
+    half the edge length, conforming across entities.  A midpoint on a curve is placed on the
+    curve (gmsh's closest point).  ``mirrored``: the mesh is mirror-symmetric about x = 0 node
+    for node (:meth:`MirrorSketch.mirror_nodes`); the new nodes of the left half are then placed
+    exactly at the mirror images of the right half's."""
+    mesh = gmsh.model.mesh
+    ents = sorted(gmsh.model.getEntities())
+    xyz, owned, elems = {}, {}, {}
+    for dim, tag in ents:
+        tags, coords, _ = mesh.getNodes(dim, tag, includeBoundary=False, returnParametricCoord=False)
+        owned[dim, tag] = [int(t) for t in tags]
+        xyz.update(zip(owned[dim, tag], np.asarray(coords, dtype=float).reshape(-1, 3)))
+        types, _, nodes = mesh.getElements(dim, tag)
+        if any(int(t) not in (15, 1, 2) for t in types):
+            raise GeometryError(f"subdivide_to_quads: entity {(dim, tag)} has elements of gmsh types "
+                                f"{sorted(map(int, types))}; only points, lines and linear triangles can be split")
+        elems[dim, tag] = {int(t): np.asarray(n, dtype=np.int64).reshape(-1, {15: 1, 1: 2, 2: 3}[int(t)])
+                           for t, n in zip(types, nodes)}
+    new_tag = max(xyz, default=0) + 1
+    mid, centre, added = {}, {}, {}  # (a, b) -> node; (a, b, c) sorted -> node; entity -> [node]
+
+    def node(key, table, point, entity):
+        nonlocal new_tag
+        t = table.get(key)
+        if t is None:
+            t = table[key] = new_tag
+            new_tag += 1
+            xyz[t] = point
+            added.setdefault(entity, []).append(t)
+        return t
+
+    for (dim, tag), by_type in elems.items():  # curves first (sorted): their midpoints lie on them
+        for a, b in by_type.get(1, ()):
+            key = (min(a, b), max(a, b))
+            if key not in mid:
+                point = np.array(gmsh.model.getClosestPoint(dim, tag, list(0.5 * (xyz[a] + xyz[b])))[0], dtype=float)
+                node(key, mid, point, (dim, tag))
+    for (dim, tag), by_type in elems.items():
+        for tri in by_type.get(2, ()):
+            for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
+                node((min(a, b), max(a, b)), mid, 0.5 * (xyz[a] + xyz[b]), (dim, tag))
+            node(tuple(sorted(tri)), centre, (xyz[tri[0]] + xyz[tri[1]] + xyz[tri[2]]) / 3.0, (dim, tag))
+    if mirrored:
+        _mirror_new_nodes(xyz, mid, centre)
+    mesh.clear()
+    elem_tag = 1
+    for dim, tag in ents:
+        tags = owned[dim, tag] + added.get((dim, tag), [])
+        if tags:
+            mesh.addNodes(dim, tag, tags, np.concatenate([xyz[t] for t in tags]).tolist())
+    for dim, tag in ents:
+        for etype, conn in elems[dim, tag].items():
+            if etype == 15:
+                out, otype = conn, 15
+            elif etype == 1:
+                m = np.array([mid[min(a, b), max(a, b)] for a, b in conn], dtype=np.int64)
+                out, otype = np.column_stack([conn[:, 0], m, m, conn[:, 1]]).reshape(-1, 2), 1
+            else:
+                quads = []
+                for a, b, c in conn:
+                    mab, mbc, mca = (mid[min(p, q), max(p, q)] for p, q in ((a, b), (b, c), (c, a)))
+                    g = centre[tuple(sorted((a, b, c)))]
+                    quads += [a, mab, g, mca, b, mbc, g, mab, c, mca, g, mbc]
+                out, otype = np.array(quads, dtype=np.int64).reshape(-1, 4), 3
+            n = out.shape[0]
+            mesh.addElementsByType(tag, otype, list(range(elem_tag, elem_tag + n)), out.ravel().tolist())
+            elem_tag += n
+
+
+def _mirror_new_nodes(xyz, mid, centre):
+    """Place each new node left of x = 0 at the exact mirror image of its right-half counterpart
+    (the node of the mirrored edge or triangle; the old nodes are exact mirrors already)."""
+    at = {(float(p[0]), float(p[1])): t for t, p in xyz.items()}
+
+    def image(t):
+        p = xyz[t]
+        return t if p[0] == 0.0 else at.get((-float(p[0]), float(p[1])))
+
+    for table in (mid, centre):
+        for key, t in list(table.items()):
+            p = xyz[t]
+            if not p[0] < 0.0:
+                continue
+            imgs = [image(v) for v in key]
+            other = table.get(tuple(sorted(imgs))) if None not in imgs else None
+            if other is None:
+                raise GeometryError(f"subdivide_to_quads: the mesh is not mirror-symmetric at node {t} ({p[0]}, {p[1]})")
+            q = xyz[other]
+            xyz[t] = np.array([-q[0], q[1], q[2]])
 
 
 def script_main(argv, name, description, defaults, check_parameters, build, cells=CELLS):

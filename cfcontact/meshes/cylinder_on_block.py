@@ -20,7 +20,8 @@ along the block's normal is ``gap0 + R - sqrt(R^2 - x^2) = gap0 + x^2 / (2 R) + 
 ``contact2`` is the block's top for ``|x| <= zone``; ``contact1`` the cylinder's arc for
 ``|x| <= 1.25 zone`` (so that every block node of ``contact2`` faces it).  Both are meshed
 uniformly with elements of size ``size``; away from them the elements grow by ``growth`` per unit
-distance up to ``size_far`` (a distance field).  Triangles, or quadrilaterals (recombined).
+distance up to ``size_far`` (a distance field).  Triangles, or quadrilaterals (each triangle of
+a mesh of twice the size split into three, :func:`cfcontact.meshes.common.subdivide_to_quads`).
 
 The mesh is mirror-symmetric about ``x = 0`` (the left half is meshed as the mirror image of
 the right half), so nodes at ``x`` and ``-x`` change state together on symmetric loads.  With
@@ -101,7 +102,7 @@ def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, 
     size : element size along the contact boundaries (default 0.02); it grows by ``growth`` per unit
         distance (default 0.2) up to ``size_far`` (default 0.25) away from them
     gap0 : initial distance between the cylinder's lowest point and the block (default 0)
-    cell : ``"triangle"`` (default) or ``"quadrilateral"`` (recombined)
+    cell : ``"triangle"`` (default) or ``"quadrilateral"`` (subdivided triangles)
     half : build the right half x >= 0 only (symmetry edges sym1, sym2 on x = 0)
     mesh : generate the 2-D mesh (default True)
 
@@ -133,8 +134,8 @@ def build(radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, size_far=0.25, 
     c1, c2 = half_model(1)
     if not p["half"]:
         half_model(-1)
-    gmsh.model.geo.mesh.setTransfiniteCurve(c1, max(2, math.ceil(R * phi1 / size)) + 1)
-    gmsh.model.geo.mesh.setTransfiniteCurve(c2, max(2, math.ceil(zone / size)) + 1)
+    gmsh.model.geo.mesh.setTransfiniteCurve(c1, common.curve_nodes(R * phi1, size, p["cell"]))
+    gmsh.model.geo.mesh.setTransfiniteCurve(c2, common.curve_nodes(zone, size, p["cell"]))
     return common.finish_symmetric(gmsh, sk, parts, p["cell"], parts["contact1"] + parts["contact2"], size,
                                    p["size_far"], 0.5 * zone, p["growth"], mesh=mesh)
 

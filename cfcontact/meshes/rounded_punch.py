@@ -20,7 +20,7 @@ under the flat part and ``gap0 + r - sqrt(r^2 - (|x| - w + r)^2)`` under the rou
 ``contact1`` is the punch's flat bottom and both rounded edges; ``contact2`` the block's top for
 ``|x| <= zone`` (default ``w - r / 4``, so that the block's contact nodes all face the punch).
 Both are meshed uniformly with elements of size ``size``, growing by ``growth`` per unit distance
-up to ``size_far`` away from them; triangles or quadrilaterals.  The mesh is mirror-symmetric about ``x = 0``; ``half=True``
+up to ``size_far`` away from them; triangles or quadrilaterals (subdivided triangles).  The mesh is mirror-symmetric about ``x = 0``; ``half=True``
 builds the right half only, with symmetry edges ``sym1``, ``sym2`` on ``x = 0``.
 
 Physical groups (DESIGN.md)::
@@ -129,9 +129,9 @@ def build(half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, depth=2.0, zon
     if not p["half"]:
         half_model(-1)
     tc = gmsh.model.geo.mesh.setTransfiniteCurve
-    tc(flat, max(2, math.ceil((w - r) / size)) + 1)
-    tc(rnd, max(2, math.ceil(0.5 * math.pi * r / size)) + 1)
-    tc(c2, max(2, math.ceil(p["zone"] / size)) + 1)
+    tc(flat, common.curve_nodes(w - r, size, p["cell"]))
+    tc(rnd, common.curve_nodes(0.5 * math.pi * r, size, p["cell"]))
+    tc(c2, common.curve_nodes(p["zone"], size, p["cell"]))
     return common.finish_symmetric(gmsh, sk, parts, p["cell"], parts["contact1"] + parts["contact2"], size,
                                    p["size_far"], 2 * r, p["growth"], mesh=mesh)
 
