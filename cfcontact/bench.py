@@ -562,7 +562,9 @@ def run(args, argv_text="") -> int:
             result["part_c"] = bs.part_c(quick=args.quick, time_limit=time_limit, sizes=strip_m)
             save()
             print(bs.table(result["part_c"]["rows"]), flush=True)
-            print(f"log-log slope of the time per transition against m: {result['part_c']['slope']}", flush=True)
+            print(f"log-log slope of the time per transition against m: {result['part_c']['slope']} "
+                  f"(the path's time with its start, per transition: {result['part_c']['slope_with_start']})",
+                  flush=True)
         if "D" in part:
             print("Part D: hard cases of the exact method", flush=True)
             result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m)

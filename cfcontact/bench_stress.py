@@ -4,9 +4,12 @@ Part C -- long interfaces: two stacked strips of length L = m / 50 and height 1,
 body (triangles), clamped at their left ends, the free edges loaded by uniform tractions with
 seeded random values (:func:`strip`), m = 1000, 2000, 4000 contact nodes, F = 0.3 and 30.  Every
 row runs in a fresh subprocess (peak memory = its ``ru_maxrss``) and reports n, m, the time split
-assembly | factorization of K | condensation (S) | path, the transitions, the time per transition,
-the branches solved by factorization updates and the refactorizations, the worst residual of
-(1)-(3) over sampled stored points, and the log-log slope of the time per transition against m.
+assembly | factorization of K | condensation (S) | path (of which the start: until the first path
+point, e.g. SSNM at alpha = 0 and a homotopy where it fails), the transitions, the time per
+transition (the path after its start, per transition), the branches solved by factorization
+updates and the refactorizations, the worst residual of (1)-(3) over sampled stored points, and
+the log-log slope of the time per transition against m (and of the path's time, start included,
+per transition).
 A row stops at its time limit (``--time-limit``, status "time limit": the path so far is
 measured).
 
@@ -164,9 +167,11 @@ def _measure_path(spec, res, system, solver, path, branch_times, dump):
 
     t_path = res["path_time"]
     st = solver.stats.as_dict()
+    t_start = branch_times[0] if branch_times else 0.0  # until the start point was accepted
     res.update(status="time limit" if path.status == "stopped by callback" else path.status,
-               transitions=len(path.transitions), folds=len(path.folds),
-               time_per_transition=t_path / max(1, len(path.transitions)),
+               transitions=len(path.transitions), folds=len(path.folds), start_time=t_start,
+               time_per_transition=(t_path - t_start) / max(1, len(path.transitions)),
+               path_time_per_transition=t_path / max(1, len(path.transitions)),
                dense_updates=st["dense_updates"], refactorizations=st["dense_factorizations"],
                start=path.stats.get("start"), homotopy_transitions=path.stats.get("homotopy_transitions", 0),
                degenerate_points=path.stats.get("degenerate_points", 0),
@@ -266,7 +271,7 @@ def _row_text(r):
     f = lambda k, w=8, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
     return (f"{r.get('model', ''):>8} {r.get('kind', ''):>7} {r.get('n', '-'):>7} {r.get('m', '-'):>5} "
             f"{r.get('friction', 0):>5g} {f('assembly_time')} {f('factorization_time')} {f('condensation_time')} "
-            f"{f('path_time')} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
+            f"{f('path_time')} {f('start_time', 6)} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
             f"{r.get('dense_updates', '-'):>7} {r.get('refactorizations', '-'):>6} {f('peak_rss_gib', 6)} "
             f"{r.get('worst_residual') if isinstance(r.get('worst_residual'), float) else float('nan'):>9.1e} "
             f"{f('ratio', 6, 1)} {_status_text(r):>11}")
@@ -279,18 +284,19 @@ def _status_text(r) -> str:
 
 def table(rows) -> str:
     head = (f"{'model':>8} {'loads':>7} {'n':>7} {'m':>5} {'F':>5} {'assembly':>8} {'factor':>8} {'condense':>8} "
-            f"{'path':>8} {'trans.':>7} {'s/trans.':>9} {'updates':>7} {'refact':>6} {'GiB':>6} {'residual':>9} "
+            f"{'path':>8} {'start':>6} {'trans.':>7} {'s/trans.':>9} {'updates':>7} {'refact':>6} {'GiB':>6} {'residual':>9} "
             f"{'ratio':>6} {'status':>11}")
     return "\n".join([head, "-" * len(head)] + [_row_text(r) for r in rows])
 
 
-def slope(rows) -> dict:
+def slope(rows, key="time_per_transition") -> dict:
     """Log-log slope of the time per transition against m, per friction coefficient (least squares
-    over the rows with at least 20 transitions)."""
+    over the rows with at least 20 transitions); ``key="path_time_per_transition"``: of the
+    path's time with its start."""
     out = {}
     for F in sorted({r["friction"] for r in rows}):
-        pts = [(r["m"], r["time_per_transition"]) for r in rows
-               if r["friction"] == F and r.get("transitions", 0) >= 20 and r.get("time_per_transition")]
+        pts = [(r["m"], r[key]) for r in rows
+               if r["friction"] == F and r.get("transitions", 0) >= 20 and r.get(key)]
         if len(pts) >= 2:
             x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
             out[str(F)] = float(np.polyfit(x, y, 1)[0])
@@ -307,7 +313,7 @@ def part_c(quick=False, time_limit=600.0, log=print, sizes=None) -> dict:
             rows.append(run_row({"model": "strip", "kind": "uniform", "m": m, "friction": F, "seed": 0,
                                  "time_limit": time_limit}, timeout=time_limit * 4 + 600, log=log))
             log("    " + _row_text(rows[-1]))
-    return {"rows": rows, "slope": slope(rows)}
+    return {"rows": rows, "slope": slope(rows), "slope_with_start": slope(rows, "path_time_per_transition")}
 
 
 def _random_loads(build, friction, paths, seed0, log):

@@ -1062,6 +1062,11 @@ class CondensedSolver:
         nu, tp, tm = Z.nu, Z.tp, Z.tm
         seen = set()
         last = None
+        # large systems: after its first iterations SSNM changes a few nodes per iteration (2-3 of
+        # 2000 on a strip at F = 30), so the iterates are solved by updates of one kept
+        # factorization, as the exact method's branches (a fresh LU each took 0.6 s there)
+        choice = getattr(self.options, "updates", None)
+        updater = _Updater(self) if 2 * m >= SSNM_UPDATE_MIN_SIZE and choice is not False else None
         for k in range(1, int(max_iter) + 1):
             key = canonical_key(nu, tp, tm, self._F0)
             if key in seen and key != last:
@@ -1070,7 +1075,11 @@ class CondensedSolver:
                 return lam_prev, InactiveSets(nu, tp, tm), k - 1, False
             seen.add(key)
             last = key
-            lam = self._solve_reduced(self._factor_sets(nu, tp, tm), w)
+            codes = None if updater is None else self._codes_of_sets(nu, tp, tm)
+            if codes is not None:
+                lam = updater.branch_data(w[:, None], codes, refine=False)[0][:, 0]
+            else:
+                lam = self._solve_reduced(self._factor_sets(nu, tp, tm), w)
             self.stats.ssnm_iterations += 1
             if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):
                 return lam, InactiveSets(nu, tp, tm), k, True
@@ -1078,6 +1087,17 @@ class CondensedSolver:
             nu, tp, tm = g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0
             lam_prev = lam
         return lam_prev, InactiveSets(nu, tp, tm), int(max_iter), False
+
+    def _codes_of_sets(self, nu, tp, tm) -> Optional[np.ndarray]:
+        """The state codes (0 open, 1 stick, 2 slip+, 3 slip-) whose system is that of the sets
+        (nu, tp, tm) (see :meth:`_reduction`), or None when no code has it (a closed node with
+        a tangential unknown in both tp and tm: lam_t = 0 but T u free)."""
+        closed = ~nu
+        it = tp | tm
+        if np.any(closed & tp & tm & ~self.no_tangent & ~self._F0):
+            return None
+        codes = np.where(nu, _OPEN, np.where(it & ~self.no_tangent, np.where(tp, _SLIP_P, _SLIP_M), _STICK))
+        return codes.astype(np.int8)
 
     def _solve_reduced(self, entry, w):
         lu, piv, rows, slip, coef, _ = entry
@@ -1473,6 +1493,10 @@ class PointTableau:
 #: from this many multipliers (2m) on; below, a fresh LU per branch is cheaper than the updates'
 #: bookkeeping.
 UPDATE_MIN_SIZE = 160
+#: SSNM in the multipliers solves its iterates by updates (:class:`_Updater`) from this size 2m
+#: of the reduced system on (a fresh LU per iterate below it; ``SolverOptions(updates=False)``:
+#: never).
+SSNM_UPDATE_MIN_SIZE = 1000
 #: A converged refinement correction (below 1e-3 of the first) that is also below this share of
 #: the multipliers (per column: values, rates) is only measured, not applied: it would change
 #: them by rounding, and applying it costs a product with S (a sixth of Part B's path at

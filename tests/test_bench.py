@@ -131,7 +131,11 @@ def test_bench_parts_c_and_d_quick(tmp_path):
         assert r["status"] == "completed" and r["transitions"] > 20, r
         assert r["dense_updates"] > r["refactorizations"] and r["worst_residual"] < 1e-9, r
         assert r["peak_rss_gib"] > 0 and r["time_per_transition"] > 0
-    assert set(c["slope"]) == {"0.3", "30.0"}
+        # the start's time is part of the path's, not of its transitions'
+        assert 0 < r["start_time"] < r["path_time"]
+        assert r["time_per_transition"] * r["transitions"] == pytest.approx(r["path_time"] - r["start_time"])
+        assert r["path_time_per_transition"] > r["time_per_transition"]
+    assert set(c["slope"]) == set(c["slope_with_start"]) == {"0.3", "30.0"}
     d = bs.part_d(quick=True, paths=4, time_limit=120, log=lambda *a: None)
     models = {r["model"] for r in d["rows"]}
     assert models == {"strip", "cylinder", "punch", "closing"}

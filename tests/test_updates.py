@@ -382,3 +382,50 @@ def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch):
         paths[compiled] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
     _same_paths(paths[True], paths[False])
     assert paths[True].status == "completed" and paths[True].folds and len(paths[True].transitions) > 50
+
+
+@pytest.mark.parametrize("friction", ["0.3", "30", "mixed"])
+def test_ssnm_iterates_by_updates_equal_fresh_factorizations(monkeypatch, friction):
+    """SSNM in the multipliers solves its iterates by updates of one kept factorization on large
+    systems (2m >= SSNM_UPDATE_MIN_SIZE; here lowered to every system): the same iterations,
+    convergence and sets as with a fresh LU per iterate, the multipliers within rounding, with
+    friction, at F = 0 nodes, and for the frictionless problem."""
+    monkeypatch.setattr(condensed, "SSNM_UPDATE_MIN_SIZE", 2)
+    for seed in range(12):
+        m = 10
+        F = {"0.3": 0.3, "30": 30.0, "mixed": np.where(np.arange(m) % 3 == 0, 0.0, 1.0)}[friction]
+        system = random_system(m, 300 + seed, friction=F)
+        upd, ref = CondensedSolver(system), CondensedSolver(system, SolverOptions(updates=False))
+        Z0 = cfcontact.InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
+        for alpha in (0.0, 0.5, 1.0):
+            w = upd.load_data(system.load(alpha))
+            a = upd._ssnm_lam(w, Z0, np.zeros(2 * m), 1e-12, 25)
+            b = ref._ssnm_lam(w, Z0, np.zeros(2 * m), 1e-12, 25)
+            assert a[2:] == b[2:] and np.array_equal(a[1].state_codes(), b[1].state_codes())
+            assert np.allclose(a[0], b[0], rtol=0, atol=1e-10 * np.abs(b[0]).max())
+            fa, fb = upd.frictionless_solution(w, 1e-12, 25), ref.frictionless_solution(w, 1e-12, 25)
+            assert np.allclose(fa[0], fb[0], rtol=0, atol=1e-10 * np.abs(fb[0]).max())
+        assert upd.stats.dense_updates > 0 and ref.stats.dense_updates == 0
+
+
+def test_a_failed_ssnm_start_on_a_long_strip_factors_few_dense_systems(monkeypatch):
+    """On a strip with m = 500 at F = 0.3 (2m = 1000: SSNM's iterates by updates) SSNM does not
+    converge at alpha = 0 in its 25 iterations and the frictionless solution (SSNM too) starts
+    the homotopy (390 transitions): those 36 iterations refactor the dense system a few times
+    (the updates' rank limit), not once per iterate, and the start is the one of a fresh LU per
+    iterate."""
+    from cfcontact.bench_stress import strip
+
+    system = strip(500, 0.3, seed=0)
+    runs = []
+    for size in (condensed.SSNM_UPDATE_MIN_SIZE, 10 ** 9):  # with, then without SSNM's updates
+        monkeypatch.setattr(condensed, "SSNM_UPDATE_MIN_SIZE", size)
+        solver = CondensedSolver(system)
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver, callback=lambda p: True)
+        assert path.stats["start"] == "frictionless" and solver.stats.ssnm_iterations >= 30
+        runs.append((path, solver.stats.dense_factorizations))
+    (new, k_new), (old, k_old) = runs
+    assert k_new <= 12 and k_old - k_new >= 25
+    assert new.stats["homotopy_transitions"] == old.stats["homotopy_transitions"]
+    assert np.array_equal(canonical_codes(new.branches[0].sets, system.friction),
+                          canonical_codes(old.branches[0].sets, system.friction))
