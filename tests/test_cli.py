@@ -185,6 +185,19 @@ def test_run_refuses_existing_output_then_force(small_run, capsys):
 
 
 @pytest.mark.slow
+def test_run_warns_when_the_path_turned_back(tmp_path, monkeypatch, capsys):
+    """A path that completed without reaching alpha_end (here: made to look so) gives one warning
+    naming how far it got, and summary.json says it (turned_back, reach)."""
+    monkeypatch.setattr(SolutionPath, "turned_back", lambda self: True)
+    monkeypatch.setattr(SolutionPath, "reach", lambda self: 0.25)
+    case = _write(tmp_path, SMALL)
+    assert cli.main(["run", case]) == 0
+    err = capsys.readouterr().err
+    assert err.count("cfcontact: warning: the path turned back: it reaches alpha = 0.25 at most") == 1
+    summary = json.loads((tmp_path / "case_out" / "summary.json").read_text())
+    assert summary["turned_back"] is True and summary["reach"] == 0.25
+
+
 def test_quiet_prints_nothing_verbose_shows_progress(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "--quiet"]) == 0
