@@ -202,8 +202,7 @@ def _run_case(args, case, run, stops, t_start):
         if path.status != "completed":
             _warn(args, f"the path ended with status {path.status!r} (see the events in summary.json / info)")
         elif path.turned_back():
-            _warn(args, turned_back_text(path.reach(), path.alpha_start,
-                                         "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"))
+            _warn(args, turned_back_text(path.reach(), path.alpha_start, getattr(path, "parameter", "alpha")))
         if not run.traced and runner.reason is not None:  # a stop after the main run: the tree or the tries
             left = path.stats.get("untried_alternatives")
             _warn(args, f"{runner.reason} after the main run: " + (

@@ -1065,8 +1065,7 @@ class CondensedSolver:
         # large systems: after its first iterations SSNM changes a few nodes per iteration (2-3 of
         # 2000 on a strip at F = 30), so the iterates are solved by updates of one kept
         # factorization, as the exact method's branches (a fresh LU each took 0.6 s there)
-        choice = getattr(self.options, "updates", None)
-        updater = _Updater(self) if 2 * m >= SSNM_UPDATE_MIN_SIZE and choice is not False else None
+        updater = _Updater(self) if self.use_updates and 2 * m >= SSNM_UPDATE_MIN_SIZE else None
         for k in range(1, int(max_iter) + 1):
             key = canonical_key(nu, tp, tm, self._F0)
             if key in seen and key != last:
@@ -1092,12 +1091,11 @@ class CondensedSolver:
         """The state codes (0 open, 1 stick, 2 slip+, 3 slip-) whose system is that of the sets
         (nu, tp, tm) (see :meth:`_reduction`), or None when no code has it (a closed node with
         a tangential unknown in both tp and tm: lam_t = 0 but T u free)."""
-        closed = ~nu
-        it = tp | tm
-        if np.any(closed & tp & tm & ~self.no_tangent & ~self._F0):
+        if np.any(~nu & tp & tm & ~self.no_tangent & ~self._F0):
             return None
-        codes = np.where(nu, _OPEN, np.where(it & ~self.no_tangent, np.where(tp, _SLIP_P, _SLIP_M), _STICK))
-        return codes.astype(np.int8)
+        codes = InactiveSets(nu, tp, tm).state_codes()  # (tp & tm: slip+, lam_t = 0 at F = 0)
+        codes[~nu & self.no_tangent] = _STICK  # no tangential unknown: lam_t = 0
+        return codes
 
     def _solve_reduced(self, entry, w):
         lu, piv, rows, slip, coef, _ = entry

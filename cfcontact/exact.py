@@ -1878,8 +1878,8 @@ def _follow_all(system, path, options, solver, callback=None):
     ctx = _tree_context(system, path, options, solver)
     i = 0
     while i < len(path.events):
-        for k in _untried(path.events[i]):
-            ev = path.events[i]
+        ev = path.events[i]
+        for k in _untried(ev):
             res = follow_alternative(system, path, i, k, solver=ctx.solver, callback=callback, _ctx=ctx)
             if res["status"] == "stopped by callback":
                 left = sum(len(_untried(e)) for e in path.events)

@@ -151,8 +151,10 @@ def path_report(path, declared=None) -> dict:
     })
 
 
-def turned_back_text(reach, start, par="alpha") -> str:
-    """What a path that completed without reaching its end means (see SolutionPath.turned_back)."""
+def turned_back_text(reach, start, parameter="alpha") -> str:
+    """What a path that completed without reaching its end means (see SolutionPath.turned_back);
+    ``parameter``: the path's ("alpha", or "friction" for a path in F)."""
+    par = "F" if parameter == "friction" else "alpha"
     return (f"the path turned back: it reaches {par} = {reach:.10g} at most and left its range at {par} = {start:g}; "
             f"beyond {reach:.10g} no solution lies on it (solutions there, if any, are not connected to the start)")
 
@@ -170,7 +172,7 @@ def format_report(rep, source) -> str:
     if rep["alpha_of_max"] is not None:
         lines.append(f"max multiplicity {rep['max_multiplicity']} (at alpha = {rep['alpha_of_max']:.10g})")
     if rep.get("turned_back"):
-        lines.append(turned_back_text(rep["reach"], rep["alpha_start"], par.split()[0]))
+        lines.append(turned_back_text(rep["reach"], rep["alpha_start"], rep.get("parameter", "alpha")))
     lines.append("")
     if rep["transitions"]:
         lines.append("transitions:")

@@ -387,10 +387,12 @@ def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch):
 @pytest.mark.parametrize("friction", ["0.3", "30", "mixed"])
 def test_ssnm_iterates_by_updates_equal_fresh_factorizations(monkeypatch, friction):
     """SSNM in the multipliers solves its iterates by updates of one kept factorization on large
-    systems (2m >= SSNM_UPDATE_MIN_SIZE; here lowered to every system): the same iterations,
+    systems (2m >= SSNM_UPDATE_MIN_SIZE, where the backend uses updates; both lowered here to
+    every system): the same iterations,
     convergence and sets as with a fresh LU per iterate, the multipliers within rounding, with
     friction, at F = 0 nodes, and for the frictionless problem."""
     monkeypatch.setattr(condensed, "SSNM_UPDATE_MIN_SIZE", 2)
+    monkeypatch.setattr(condensed, "UPDATE_MIN_SIZE", 2)
     for seed in range(12):
         m = 10
         F = {"0.3": 0.3, "30": 30.0, "mixed": np.where(np.arange(m) % 3 == 0, 0.0, 1.0)}[friction]

@@ -292,8 +292,7 @@ def finish_symmetric(gmsh, sk, parts, cell, contact_curves, size, size_far, dist
     gmsh.model.geo.synchronize()
     sk.remove_centres(gmsh)
     sk.make_symmetric(gmsh)
-    k = triangle_size(1.0, cell)
-    refine_near(gmsh, contact_curves, k * size, k * size_far, dist_min, growth)
+    refine_near(gmsh, contact_curves, triangle_size(size, cell), triangle_size(size_far, cell), dist_min, growth)
     groups = {name: (TAGS[name][0], ents) for name, ents in parts.items()}
     created = add_physical_groups(gmsh, groups)
     if mesh:
@@ -341,14 +340,14 @@ def subdivide_to_quads(gmsh, mirrored=False):
 
     for (dim, tag), by_type in elems.items():  # curves first (sorted): their midpoints lie on them
         for a, b in by_type.get(1, ()):
-            key = (min(a, b), max(a, b))
+            key = _edge(a, b)
             if key not in mid:
                 point = np.array(gmsh.model.getClosestPoint(dim, tag, list(0.5 * (xyz[a] + xyz[b])))[0], dtype=float)
                 node(key, mid, point, (dim, tag))
     for (dim, tag), by_type in elems.items():
         for tri in by_type.get(2, ()):
             for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
-                node((min(a, b), max(a, b)), mid, 0.5 * (xyz[a] + xyz[b]), (dim, tag))
+                node(_edge(a, b), mid, 0.5 * (xyz[a] + xyz[b]), (dim, tag))
             node(tuple(sorted(tri)), centre, (xyz[tri[0]] + xyz[tri[1]] + xyz[tri[2]]) / 3.0, (dim, tag))
     if mirrored:
         _mirror_new_nodes(xyz, mid, centre)
@@ -363,18 +362,23 @@ def subdivide_to_quads(gmsh, mirrored=False):
             if etype == 15:
                 out, otype = conn, 15
             elif etype == 1:
-                m = np.array([mid[min(a, b), max(a, b)] for a, b in conn], dtype=np.int64)
+                m = np.array([mid[_edge(a, b)] for a, b in conn], dtype=np.int64)
                 out, otype = np.column_stack([conn[:, 0], m, m, conn[:, 1]]).reshape(-1, 2), 1
             else:
                 quads = []
                 for a, b, c in conn:
-                    mab, mbc, mca = (mid[min(p, q), max(p, q)] for p, q in ((a, b), (b, c), (c, a)))
+                    mab, mbc, mca = (mid[_edge(p, q)] for p, q in ((a, b), (b, c), (c, a)))
                     g = centre[tuple(sorted((a, b, c)))]
                     quads += [a, mab, g, mca, b, mbc, g, mab, c, mca, g, mbc]
                 out, otype = np.array(quads, dtype=np.int64).reshape(-1, 4), 3
             n = out.shape[0]
             mesh.addElementsByType(tag, otype, list(range(elem_tag, elem_tag + n)), out.ravel().tolist())
             elem_tag += n
+
+
+def _edge(a, b):
+    """The key of the edge between nodes a and b (either order)."""
+    return (a, b) if a < b else (b, a)
 
 
 def _mirror_new_nodes(xyz, mid, centre):
