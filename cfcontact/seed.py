@@ -20,6 +20,7 @@ from typing import Optional
 
 import numpy as np
 
+from cfcontact.errors import ConvergenceError
 from cfcontact.options import AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point
@@ -46,7 +47,7 @@ class SeedStepper(Stepper):
         if resume is None:
             self._start_clock()
             self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
-            start = start_point(system, span.start, y0, options, self.solver)
+            start = self._start_point(span.start, y0)
             start = oriented_start(system, start, span, options, self.solver)  # a degenerate start: its sets
             self.Z, self.s, self.alpha, self.y = start.sets, span.direction, span.start, start.y
             self.branch = self.path.add_branch(self.Z, self.s, *branch_endpoints(system, self.solver, self.Z),
@@ -57,6 +58,7 @@ class SeedStepper(Stepper):
         else:  # continue exactly after the last accepted point of the stopped run
             path, state = resume_parts(system, span.start, span.end, resume, "seed")
             self._start_clock(path.stats)
+            self.start = {k: path.stats[k] for k in ("start", "homotopy_transitions") if k in path.stats}
             self.path = path
             self.h, self.steps = float(state["h"]), int(state["steps"])
             self.last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c)
@@ -66,6 +68,34 @@ class SeedStepper(Stepper):
             self.Z, self.s = self.branch.sets, self.branch.orientation
             self.alpha, self.y = path._alphas[-1], path._ys[-1]
             path.status = "running"
+
+    def _start_point(self, alpha, y0) -> Solution:
+        """SSNM's solution at alpha (:func:`start_point`: with its restarts); where SSNM does not
+        converge (at large F it can cycle from every start it is given), the solution the exact
+        method reaches in the condensed multipliers (:func:`cfcontact.exact.reach_start`), solved
+        with this run's backend and checked (an event "start_reached" says how)."""
+        system, path = self.system, self.path
+        try:
+            start = start_point(system, alpha, y0, self.opts, self.solver)
+            self.start = {"start": "ssnm"}
+            return start
+        except ConvergenceError as exc:
+            if y0 is not None:
+                raise
+            failure = exc
+        from cfcontact.exact import reach_start
+
+        sets, how = reach_start(system, alpha, path, self.opts)
+        y = self.solver.solve(sets, system.load(alpha))
+        if not _fixed_point(system, y, sets):
+            raise ConvergenceError(f"{failure}; the start the exact method reached ({how}) is not a fixed point "
+                                   f"with this backend") from failure
+        n = int(path.stats.pop("homotopy_transitions", 0))
+        self.start = {"start": how, "homotopy_transitions": n}
+        path.events.append(PathEvent("start_reached", alpha, f"SSNM did not converge at alpha_start; the start "
+                                     f"was reached by the exact method ({how}, {n} transition(s))", None,
+                                     {"how": how, "transitions": n}))
+        return Solution.from_y(system, y, alpha, sets)
 
     # ------------------------------------------------------------- stepper interface
     @property
@@ -86,6 +116,7 @@ class SeedStepper(Stepper):
     def _update_stats(self):
         self.branch.alpha_exit = self.alpha
         super()._update_stats()
+        self.path.stats.update(self.start)
 
     def _finish(self, status, done=False) -> SolutionPath:
         self.finished = True
@@ -116,8 +147,7 @@ class SeedStepper(Stepper):
             step = abs(a_new - alpha)
             y_pred = solver.solve(Z, (1.0 - a_new) * f1 + a_new * f2) if step > 0 else self.y
             # (at the end of the span the branch may end on a tie: a zero load there, say)
-            if step > 0 and (is_fixed_point(system, y_pred, Z)
-                             or clipped and consistent_up_to_ties(system, y_pred, Z)):
+            if step > 0 and _fixed_point(system, y_pred, Z):
                 self.alpha, self.y = a_new, y_pred
                 idx = path.add_point(self.branch, a_new, y_pred)
                 self.h = min(opts.c_p * h, opts.h_max)
@@ -211,7 +241,7 @@ def _ranked_toggles(system, y, sets, limit=8):
         kind, i = SET_NAMES[k // system.m], int(k % system.m)
         if kind != "nu" and (no_tangent[i] or sets.nu[i]):
             continue
-        new = toggle(sets, i, kind)
+        new = _toggled(sets, i, kind, no_tangent)
         if not new.equivalent(sets, system.friction):
             out.append((float(vals[k]), i, kind, new))
             if kind == "nu" and sets.nu[i] and (tp_tie[i] or tm_tie[i]):
@@ -246,34 +276,60 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
         for j in range(i + 1, len(top)):
             if top[i][1] == top[j][1] and top[i][2] == top[j][2]:
                 continue
-            Zp = toggle(top[i][3], top[j][1], top[j][2])
+            Zp = _toggled(top[i][3], top[j][1], top[j][2], system.no_tangent)
             cands.append((Zp, [(top[i][1], top[i][2]), (top[j][1], top[j][2])]))
     y_old_1 = None
-    for rank, (Zn, changes) in enumerate(cands):
+    for Zn, changes in cands:
         node, kind = changes[0]
         y1 = solver.solve(Zn, load(a1)) if lo <= a1 <= hi else None
-        y2 = None
-        if rank > 0:
-            # continuity with the old branch: the two affine branches meet at the transition
-            if y_old_1 is None:
-                y_old_1 = solver.solve(Z, load(a1)) if y1 is not None else None
-            y2 = solver.solve(Zn, load(alpha))
-            jump = np.linalg.norm(y2 - y)
-            scale = np.linalg.norm(y) + 1e-300
-            if y1 is not None and y_old_1 is not None:
-                slope_gap = np.linalg.norm((y1 - y2) - (y_old_1 - y)) / max(h_fail, 1e-300) * h_fail
-                if jump > 2.0 * slope_gap + 1e-9 * scale:
-                    continue
-        if y1 is not None and is_fixed_point(system, y1, Zn):
+        # continuity with the old branch: the two affine branches meet at the transition (also
+        # for the seed's own choice: at a near-tie the minimizer of (17) can be a node whose
+        # toggle leads onto another branch that is consistent at alpha + s h_fail -- back onto
+        # the branch the path came from, say -- a jump the fixed-point test does not see)
+        if y_old_1 is None:
+            y_old_1 = solver.solve(Z, load(a1)) if y1 is not None else None
+        y2 = solver.solve(Zn, load(alpha))
+        jump = np.linalg.norm(y2 - y)
+        scale = np.linalg.norm(y) + 1e-300
+        if y1 is not None and y_old_1 is not None:
+            slope_gap = np.linalg.norm((y1 - y2) - (y_old_1 - y)) / max(h_fail, 1e-300) * h_fail
+            if jump > 2.0 * slope_gap + 1e-9 * scale:
+                continue
+        if y1 is not None and _fixed_point(system, y1, Zn):
             return ("transversal", node, kind, Zn, s, a1, y1, True, [{"node": n, "set": k} for n, k in changes])
-        if y2 is None:
-            y2 = solver.solve(Zn, load(alpha))
-        if is_fixed_point(system, y2, Zn):
+        if is_fixed_point(system, y2, Zn):  # strict: a tied node's toggle would pass vacuously
             return ("fold", node, kind, Zn, -s, alpha, y2, True, [{"node": n, "set": k} for n, k in changes])
     Zn, changes = cands[0]
     node, kind = changes[0]
     return ("fold", node, kind, Zn, -s, alpha, solver.solve(Zn, load(alpha)), False,
             [{"node": node, "set": kind}])
+
+
+def _fixed_point(system, y, Z) -> bool:
+    """Remark 3.1's test (Z(y) = Z), where an indicator that vanishes at y (:func:`indicator_ties`)
+    may take either side.  A node can sit exactly on a boundary for a whole branch: a contact node
+    clamped on one side whose other side is unloaded once every node is open has N u = g and
+    lam = 0 there for every alpha.  The strict test puts it in the active set, so no candidate of the
+    branching algorithm passed and the seed's fold rule turned the path back at a transversal
+    transition.  (It was the test at a clipped end of the span before; a generic point has no tie,
+    and the strict test is tried first.)  Not for a fold's test at the branch end: there a toggle of
+    a tied node changes nothing and would pass."""
+    return is_fixed_point(system, y, Z) or consistent_up_to_ties(system, y, Z)
+
+
+def _toggled(sets: InactiveSets, i: int, kind: str, no_tangent) -> InactiveSets:
+    """:func:`toggle`, except that a sticking node that opens is freed tangentially (put in I_t^+).
+    Rule (18) alone leaves it sticking: DirNeu then imposes T u = 0 at a node with lam_n = 0, and
+    its reaction lam_t is not 0, so the candidate is no solution (|lam_t| > F lam_n = 0) unless
+    lam_t vanishes by chance.  A node that opens from sticking is a degenerate point (lam_t -> 0
+    with lam_n), typical of a node whose force stays zero (a clamped end of the interface); the
+    branching algorithm found no candidate there and applied its fold rule."""
+    new = toggle(sets, i, kind)
+    if kind == "nu" and new.nu[i] and not (new.tp[i] or new.tm[i] or no_tangent[i]):
+        tp = new.tp.copy()
+        tp[i] = True
+        new = InactiveSets(new.nu, tp, new.tm)
+    return new
 
 
 def toggle(sets: InactiveSets, i: int, kind: str) -> InactiveSets:

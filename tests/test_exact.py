@@ -795,6 +795,36 @@ def test_frictionless_start_is_a_solution_and_starts_the_same_path():
                                 backend="condensed").stats["start"] == "ssnm"
 
 
+@pytest.mark.parametrize("seed, how", [(213, "frictionless"), (103, "homotopy")])
+def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how):
+    """Lumped models at F = 30 where SSNM fails from every restart of start_point with the full
+    backend.  The seed method and the exact method on the full PETSc backend raised
+    ConvergenceError (the homotopy start was the condensed backend's alone); now both start from
+    the solution the exact method reaches in the condensed multipliers, and give the condensed
+    run's path."""
+    from cfcontact.errors import ConvergenceError
+    from cfcontact.ssnm import get_solver
+    from cfcontact.start import start_point
+
+    system = random_system(6, seed, friction=30.0)
+    with pytest.raises(ConvergenceError):
+        start_point(system, 0.0, None, cfcontact.PathOptions(), get_solver(system))
+    ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
+    seq = [(t.node, t.set, t.kind) for t in ref.transitions]
+    assert ref.stats["start"] == how and seq
+    for path in (cfcontact.trace_path(system, 0.0, 1.0, method="seed"),
+                 cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="full")):
+        assert path.status == "completed" and path.stats["start"] == how
+        assert path.stats["homotopy_transitions"] == ref.stats["homotopy_transitions"]
+        assert [(t.node, t.set, t.kind) for t in path.transitions] == seq
+        assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-10
+    events = [e for e in path.events if e.kind == "start_reached"]
+    assert not events  # the exact method says it in its stats
+    seed_path = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    (event,) = [e for e in seed_path.events if e.kind == "start_reached"]
+    assert event.data == {"how": how, "transitions": ref.stats["homotopy_transitions"]}
+
+
 def test_homotopy_start_is_not_bounded_by_the_path_cap():
     """On a long strip (m = 500, F = 0.3) SSNM from 0 does not converge within the start's 25
     iterations; the exact method reaches the start by its homotopy from the frictionless solution

@@ -16,6 +16,7 @@ from cfcontact import case as case_file
 from cfcontact import cli
 from cfcontact.errors import GeometryError, InputError
 from cfcontact.path import SolutionPath
+from cfcontact.ssnm import DirNeuSolver
 from reference import frictionless_dual
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -130,6 +131,66 @@ def test_arc_frictionless_against_dual_qp(arc_model):
         saw_active |= bool(np.any(lam_ref > 1e-6 * lam_ref.max()))
         saw_open |= bool(np.any(lam_ref <= 1e-12 * lam_ref.max()))
     assert saw_active and saw_open
+
+
+def test_seed_crosses_a_transition_into_an_exact_tie():
+    """Only body 1 is loaded and the left end of its arc is clamped: once every node is open, body 2
+    carries nothing and that end node has N u = g and lam = 0 for every alpha (an exact tie, both
+    states are solutions).  The seed's strict fixed-point test put it in the active set, no
+    candidate of its branching passed, and its fold rule turned the path back to alpha = 0 (26
+    transitions instead of 13).  Now it crosses as the exact method does."""
+    system = cfcontact.arc_on_block(nx=7, ny=3, half_angle=70.2126807587366, cell="triangle", friction=0.3,
+                                    tractions1={"top1": (-13350769.6, -103154161.9)},
+                                    tractions2={"top1": (-56979658.2, 7663425.7)})
+    exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert exact.status == seed.status == "completed"
+    ends_open = exact.branches[exact.transitions[-1].to_branch].sets
+    assert ends_open.nu.all()  # the last branch: every node open
+    y = DirNeuSolver(system).solve(ends_open, system.load(0.9))  # u = K^-1 f, lam = 0
+    gaps = system.contact_maps()[0] @ y[:system.n] - system.gap
+    assert np.count_nonzero(gaps == 0.0) >= 1  # the tied node: closed would do as well
+    assert [(t.node, t.set, t.kind) for t in seed.transitions] == [(t.node, t.set, t.kind) for t in exact.transitions]
+    assert len(exact.transitions) == 13 and seed.reach() == 1.0
+    assert not [e for e in seed.events if e.kind == "unverified_transition"]
+    for i in range(len(seed.alphas)):
+        assert cfcontact.verify(system, seed.point_y(i), seed.alphas[i]).worst() < 1e-10
+
+
+def _branch_codes(path):
+    return [b.sets.state_codes().tolist() for b in path.branches]
+
+
+@pytest.mark.parametrize("case", ["sticking node opens", "near-tie minimizer jumps"])
+def test_seed_follows_the_exact_branches_at_degenerate_transitions(case):
+    """Two transitions the seed's branching algorithm got wrong (found by a sweep of random
+    variants; both turned its path back before alpha = 1):
+
+    * the arc's clamped end node sticks with zero force and opens as the next node closes: rule
+      (18) opened it still sticking (T u = 0 imposed with lam_n = 0), no candidate was a solution
+      and the fold rule was applied.  An opening node is now freed tangentially.
+    * two blocks at F = 30 on a non-matching interface: at the second of two folds 0.0006 apart the
+      minimizer of (17) led back onto the open branch the path came from (consistent there, but
+      not continuous with the branch being left).  The seed's own choice is now checked for
+      continuity as the other candidates were."""
+    if case == "sticking node opens":
+        system = cfcontact.arc_on_block(nx=4, ny=2, half_angle=52.22950899853359, cell="triangle", friction=0.3,
+                                        tractions1={"top1": (-69256995.85, 16998109.49)},
+                                        tractions2={"top1": (60681730.87, -108134746.94)})
+    else:
+        system = cfcontact.two_blocks(nx=3, ny=3, nx2=10, pairing="segment", cell="quadrilateral", angle=-30.0,
+                                      friction=30.0, tractions1={"top1": (-58753826.95, 25382302.67)},
+                                      tractions2={"top1": (44898306.26, -56903415.38),
+                                                  "right1": (-38573520.75, -117039257.88)})
+    exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert exact.status == seed.status == "completed" and exact.reach() == seed.reach() == 1.0
+    assert len(exact.transitions) == 7
+    assert _branch_codes(seed) == _branch_codes(exact)
+    assert [t.kind for t in seed.transitions] == [t.kind for t in exact.transitions]
+    for t, e in zip(seed.transitions, exact.transitions):
+        assert t.bracket[0] - 1e-12 <= e.alpha <= t.bracket[1] + 1e-12
+    assert not [e for e in seed.events if e.kind == "unverified_transition"]
 
 
 @pytest.mark.slow
