@@ -1101,8 +1101,8 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
         pivots = []
     if len(pivots) > 1:
         degenerate = True
-    if e is not None:
-        de = float(nxt.dc[e])
+    de = float(nxt.dc[e]) if e is not None else 0.0
+    if de != 0.0:  # (a constraint with no rate -- an exact tie for the whole branch -- locates nothing)
         delta = -float(nxt.c[e]) / de
         if (float(nxt.tol_v[e]) / abs(de) < a_err and abs(delta) <= 2.0 * a_err
                 and s * (a_star + delta - alpha_from) >= 0 and ctx.lo <= a_star + delta <= ctx.hi):

@@ -54,7 +54,7 @@ from cfcontact.errors import CfcontactError, InputError
 from cfcontact.exact import canonical_codes, trace_exact
 from cfcontact.jsonio import jsonable
 from cfcontact.options import PathOptions
-from cfcontact.rational import RationalBranch, friction_pattern, polish_root, solver_at
+from cfcontact.rational import RationalBranch, friction_pattern, node_kinds, polish_root, solver_at
 from cfcontact.solution_path import SET_NAMES
 
 log = logging.getLogger(__name__)
@@ -285,7 +285,7 @@ class _Sweep:
         self.system = system
         self.solver, self.opts, self.phi = _paths_setup(system, solver, options)
         self.starts = _Starts(system, self.solver, float(alpha_start), float(F_max), self.opts, start)
-        self.F0_index = (self.phi == 0.0).astype(np.intp)
+        self.F0_index = node_kinds(system, self.phi)
         self.a0, self.a1 = float(alpha_start), float(alpha_end)
         self.lo, self.hi = min(self.a0, self.a1), max(self.a0, self.a1)
         W = self.solver.load_data_many(list(system.loads_numpy()))

@@ -55,7 +55,7 @@ from cfcontact.exact import (
 )
 from cfcontact.jsonio import jsonable
 from cfcontact.options import AlphaSpan, PathOptions
-from cfcontact.rational import RationalBranch, friction_pattern, mu_at, polish_root, solver_at
+from cfcontact.rational import RationalBranch, friction_pattern, mu_at, node_kinds, polish_root, solver_at
 from cfcontact.solution_path import SET_NAMES, Branch, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, Solution, verify
 from cfcontact.stepper import Stepper, check_monitor
@@ -254,7 +254,7 @@ class _FData:
         self.system, self.solver = system, solver
         self.S, self.rho = solver.S, system.rho
         self.phi = pattern
-        self.F0_index = (pattern == 0.0).astype(np.intp)
+        self.F0_index = node_kinds(system, pattern)
         self.w = solver.load_data(system.load(alpha))
         self.W = self.w[:, None]
         self._branches: dict = {}
@@ -298,7 +298,7 @@ class _FContext(_Context):
         self.Fv = pattern
         self.F0 = pattern == 0.0
         # the node kinds of the exact method's tables (F = 0; no tangential unknown)
-        self.F0_index = np.where(np.asarray(system.no_tangent, dtype=bool), 2, self.F0.astype(np.intp))
+        self.F0_index = node_kinds(system, pattern)
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
         self.data = _FData(system, solver, alpha, pattern)
@@ -343,8 +343,8 @@ def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple
     """(codes, how): the state codes of a solution at the load f(alpha) with friction F pattern:
     SSNM in the multipliers, else the exact method's homotopy from the frictionless solution or
     from the all-open state, else enumeration (small problems).  At F = 0 a closed node with
-    friction slips in the direction of its T u (stick when T u = 0): the states of F = 0+.
-    ``monitor``: as for :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
+    friction slips in the direction of its T u (stick when T u = 0): the states of F = 0+.  A
+    closed node without tangential unknown sticks.  ``monitor``: as for :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
     sysF = friction_system(system, F, pattern)
     view = solver_at(solver, sysF)
     f = system.load(alpha)
@@ -360,12 +360,15 @@ def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple
     if sets is None:
         raise ConvergenceError(f"no start solution found at alpha={alpha}, F={F}")
     codes = canonical_codes(sets, sysF.friction_vector)
+    kinds = node_kinds(system, pattern)
+    # a closed node without tangential unknown sticks (lam_t = 0), as in the condensed backend's codes
+    codes = np.where((codes != OPEN) & (kinds == 2), STICK, codes).astype(np.int8)
     if F == 0.0:
-        rb = RationalBranch(solver.S, system.rho, codes, pattern, (pattern == 0.0).astype(np.intp))
+        rb = RationalBranch(solver.S, system.rho, codes, pattern, kinds)
         _, ind, err = rb.solve(0.0, solver.load_data(f)[:, None])
         m = system.m
         gt, tol = ind[m:2 * m, 0], 1e3 * err[m:2 * m, 0] + 1e-13 * np.abs(ind).max(initial=0.0)
-        free = (codes != OPEN) & (pattern > 0)
+        free = (codes != OPEN) & (kinds == 0)
         codes = np.where(free, np.where(gt > tol, SLIP_P, np.where(gt < -tol, SLIP_M, STICK)), codes).astype(np.int8)
     return codes, how
 

@@ -324,3 +324,31 @@ def test_per_node_friction_scales_by_one_factor():
             assert sol.lam_t[2] == 0.0  # the frictionless node
     seed_path = trace_friction_path(system, 0.0, 40.0, 0.0, method="seed")
     assert set_changes(seed_path) == set_changes(path)
+
+
+def test_friction_path_with_a_node_without_tangential_unknown():
+    """Body 1 on rollers (u_x = 0 on left1) over a clamped body 2: the left contact node's two sides
+    cannot move tangentially, its T row is zero (``system.no_tangent``).  A sticking node there
+    put the equation (T u)_i = 0 -- the zero row -- into the branch matrix, and every friction
+    path from F = 0 (and ``cfcontact run`` with parameter = "friction") failed with "M(F) is
+    singular".  Such a node now sticks with lam_t = 0, as in the condensed backend; the path agrees
+    with enumeration and with the seed method in F."""
+    system = cfcontact.two_blocks(nx=5, ny=4, cell="triangle", friction=30.0, clamp=("left2",),
+                                  tractions1={"top1": (45555826.47, -113881675.57)},
+                                  tractions2={"top1": (67998807.98, -21120105.01), "right1": (19984913.92, -18844158.81)},
+                                  dirichlet={"left1": {"x": 0.0}, "top1": {"y": (0.0, -0.00260757)}})
+    assert np.flatnonzero(system.no_tangent).tolist() == [0]
+    path = trace_friction_path(system, 0.5, 0.0, 30.0)
+    assert path.status == "completed" and len(path.transitions) == 2
+    for t in path.transitions:
+        sysF = friction_system(system, t.alpha, path.pattern)
+        for b in (t.from_branch, t.to_branch):
+            assert verify(sysF, path.branch_y(b, t.alpha), 0.5).worst() < 1e-12
+    for F in (0.0, 1.0, 10.0, 29.0):
+        (sol,) = path.solutions_at(F)
+        (ref,) = enumerate_solutions(friction_system(system, F, path.pattern), 0.5)
+        assert sol.lam_t[0] == 0.0
+        assert np.abs(sol.y - ref.y).max() <= 1e-12 * np.abs(ref.y).max()
+    seed = trace_friction_path(system, 0.5, 0.0, 30.0, method="seed")
+    assert [b.sets.state_codes().tolist() for b in seed.branches] == [b.sets.state_codes().tolist()
+                                                                        for b in path.branches]
