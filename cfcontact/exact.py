@@ -1610,17 +1610,18 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
     else:
         start_sets, how = _ssnm_start(ctx, alpha, y0), "ssnm"
         if start_sets is None:
-            start_sets, how = reach_start(system, alpha, path, ctx.opts, monitor, ctx)
+            start_sets, how, _ = reach_start(system, alpha, path, ctx.opts, monitor, ctx)
         codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
 
 
 def reach_start(system, alpha, path, options: Optional[PathOptions] = None, monitor=None, ctx=None) -> tuple:
-    """(sets, how) of a solution at alpha where SSNM did not converge, reached by the exact method
-    in the condensed multipliers (:func:`_reach_start`: from the frictionless solution, how =
-    "frictionless", else from the all-open state, "homotopy"), else -- a numerical failure of both,
-    on a small problem -- by enumeration ("enumeration", an event on ``path``).  ``ctx``: the
+    """(sets, how, transitions) of a solution at alpha where SSNM did not converge, reached by the
+    exact method in the condensed multipliers (:func:`_reach_start`: from the frictionless solution,
+    how = "frictionless", else from the all-open state, "homotopy"; ``transitions``: the
+    homotopies'), else -- a numerical failure of both, on a small problem -- by enumeration
+    ("enumeration", an event on ``path``).  ``ctx``: the
     calling run's context; when its backend is not the condensed one (the full PETSc backend, the
     seed method's) the system's condensed solver is formed for the start (K factored, S) and the
     run goes on with its own backend.  ConvergenceError when nothing is found."""
@@ -1631,19 +1632,16 @@ def reach_start(system, alpha, path, options: Optional[PathOptions] = None, moni
     if rctx is None or not rctx.condensed:
         rctx = _Context(system, get_condensed_solver(system), opts, 0.0, 1.0, float(opts.tie_rtol))
     sets, how, transitions = _reach_start(rctx, alpha, monitor)
-    if rctx is not ctx:
-        if ctx is not None:
+    if ctx is not None:
+        if rctx is not ctx:
             for k, v in rctx.stats.items():
                 ctx.stats[k] += v
-        else:
-            path.stats["homotopy_transitions"] = transitions
-    if ctx is not None:
         ctx.stats["homotopy_transitions"] = transitions
     if sets is not None:
         log.info("SSNM did not converge at alpha_start=%g; the start was reached by the exact method from the %s "
                  "state (%d transitions)", alpha, "frictionless" if how == "frictionless" else "all-open", transitions)
-        return sets, how
-    return _enumeration_start(system, alpha, path), "enumeration"
+        return sets, how, transitions
+    return _enumeration_start(system, alpha, path), "enumeration", transitions
 
 
 def _reach_start(ctx: _Context, alpha, monitor=None) -> tuple:

@@ -68,8 +68,8 @@ def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, m
         return ExactStepper(system, span, options, solver, y0=y0, resume=resume, monitor=monitor)
     from cfcontact.seed import SeedStepper
 
-    check_monitor(monitor)  # (the seed method's start is SSNM alone: nothing to monitor)
-    return SeedStepper(system, span, options, solver, y0=y0, resume=resume)
+    check_monitor(monitor)  # (the seed method's start: SSNM, else the exact method's homotopy start)
+    return SeedStepper(system, span, options, solver, y0=y0, resume=resume, monitor=monitor)
 
 
 def check_resume_method(resume, method):
@@ -97,7 +97,8 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint`; a truthy
         return stops the run (status "stopped by callback")
     monitor : called during a long start, before the path's first point (the exact method's
-        homotopy start when SSNM does not converge at alpha_start), with a
+        homotopy start when SSNM does not converge at alpha_start; the seed method takes that
+        start too), with a
         :class:`~cfcontact.StartProgress` after each of its transitions; a truthy
         return abandons the run: :class:`~cfcontact.errors.StartInterrupted` (nothing to resume)
     resume : continue a run stopped by its callback instead of starting anew: a dict

@@ -40,14 +40,15 @@ class SeedStepper(Stepper):
 
     method = "seed"
 
-    def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None):
+    def __init__(self, system, span: AlphaSpan, options: PathOptions, solver=None, y0=None, resume=None,
+                 monitor=None):
         self.system, self.span, self.opts = system, span, options
         self.solver = solver or get_solver(system)
         self.f1, self.f2 = system.loads_numpy()
         if resume is None:
             self._start_clock()
             self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
-            start = self._start_point(span.start, y0)
+            start = self._start_point(span.start, y0, monitor)
             start = oriented_start(system, start, span, options, self.solver)  # a degenerate start: its sets
             self.Z, self.s, self.alpha, self.y = start.sets, span.direction, span.start, start.y
             self.branch = self.path.add_branch(self.Z, self.s, *branch_endpoints(system, self.solver, self.Z),
@@ -69,11 +70,12 @@ class SeedStepper(Stepper):
             self.alpha, self.y = path._alphas[-1], path._ys[-1]
             path.status = "running"
 
-    def _start_point(self, alpha, y0) -> Solution:
+    def _start_point(self, alpha, y0, monitor=None) -> Solution:
         """SSNM's solution at alpha (:func:`start_point`: with its restarts); where SSNM does not
         converge (at large F it can cycle from every start it is given), the solution the exact
-        method reaches in the condensed multipliers (:func:`cfcontact.exact.reach_start`), solved
-        with this run's backend and checked (an event "start_reached" says how)."""
+        method reaches in the condensed multipliers (:func:`cfcontact.exact.reach_start`; ``monitor``
+        sees its homotopy), solved with this run's backend and checked (an event "start_reached"
+        says how)."""
         system, path = self.system, self.path
         try:
             start = start_point(system, alpha, y0, self.opts, self.solver)
@@ -85,12 +87,11 @@ class SeedStepper(Stepper):
             failure = exc
         from cfcontact.exact import reach_start
 
-        sets, how = reach_start(system, alpha, path, self.opts)
+        sets, how, n = reach_start(system, alpha, path, self.opts, monitor)
         y = self.solver.solve(sets, system.load(alpha))
         if not _fixed_point(system, y, sets):
             raise ConvergenceError(f"{failure}; the start the exact method reached ({how}) is not a fixed point "
                                    f"with this backend") from failure
-        n = int(path.stats.pop("homotopy_transitions", 0))
         self.start = {"start": how, "homotopy_transitions": n}
         path.events.append(PathEvent("start_reached", alpha, f"SSNM did not converge at alpha_start; the start "
                                      f"was reached by the exact method ({how}, {n} transition(s))", None,

@@ -820,9 +820,13 @@ def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how):
         assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-10
     events = [e for e in path.events if e.kind == "start_reached"]
     assert not events  # the exact method says it in its stats
-    seed_path = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    seen = []
+    seed_path = cfcontact.trace_path(system, 0.0, 1.0, method="seed", monitor=seen.append)
     (event,) = [e for e in seed_path.events if e.kind == "start_reached"]
     assert event.data == {"how": how, "transitions": ref.stats["homotopy_transitions"]}
+    assert seen and seen[-1].transitions == ref.stats["homotopy_transitions"]  # the monitor saw the homotopy
+    with pytest.raises(cfcontact.StartInterrupted):
+        cfcontact.trace_path(system, 0.0, 1.0, method="seed", monitor=lambda progress: True)
 
 
 def test_homotopy_start_is_not_bounded_by_the_path_cap():
