@@ -69,3 +69,49 @@ def test_mpi_case_file_matches_serial(tmp_path, run_mpi):
         ref = serial[key]
         assert par[key].shape == ref.shape, key
         assert np.abs(par[key] - ref).max(initial=0.0) <= 1e-9 * max(np.abs(ref).max(initial=0.0), 1e-300), key
+
+
+SSNM_FAILS_CASE = """[geometry]
+kind = "two_blocks"
+nx = 7
+ny = 3
+nx2 = 6
+cell = "triangle"
+angle = -30.0
+[contact]
+friction = 30.0
+pairing = "segment"
+[loads.f1]
+top1 = [-37281138.45586749, -34814571.34825175]
+[loads.f2]
+top1 = [86485123.38441548, -105459537.00099795]
+right1 = [9019234.515458163, -6166829.836901866]
+[path]
+method = "seed"
+"""
+
+
+@pytest.mark.mpi
+def test_mpi_seed_start_where_ssnm_fails_matches_serial(tmp_path, run_mpi):
+    """Inclined blocks at F = 30 on a non-matching interface, where SSNM fails at alpha = 0 from
+    every restart: the seed method starts from the solution the exact method reaches (the
+    frictionless homotopy, on a condensed solver formed for it, distributed under MPI); its path
+    with two ranks is the serial one (one event: start_reached)."""
+    sys.path.insert(0, HERE)
+    try:
+        import mpi_case_script as script
+    finally:
+        sys.path.remove(HERE)
+    case = tmp_path / "ssnm_fails.toml"
+    case.write_text(SSNM_FAILS_CASE)
+    out = tmp_path / "mpi.npz"
+    run_mpi(2, os.path.join(HERE, "mpi_case_script.py"), str(case), str(out), timeout=600)
+    par = np.load(out)
+    assert int(par["size"]) == 2 and 0 < par["ranges"][1] < par["ranges"][2]
+    serial = script.result(str(case))
+    assert str(par["status"]) == str(serial["status"]) == "completed"
+    assert int(par["events"]) == int(serial["events"]) == 1
+    assert str(par["changes"]) == str(serial["changes"]) and len(serial["alphas"]) == 6
+    np.testing.assert_allclose(par["alphas"], serial["alphas"], rtol=0, atol=1e-10)
+    ref = serial["y_end"]
+    assert np.abs(par["y_end"] - ref).max() <= 1e-9 * np.abs(ref).max()
