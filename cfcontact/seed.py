@@ -147,7 +147,8 @@ class SeedStepper(Stepper):
                 clipped = True
             step = abs(a_new - alpha)
             y_pred = solver.solve(Z, (1.0 - a_new) * f1 + a_new * f2) if step > 0 else self.y
-            # (at the end of the span the branch may end on a tie: a zero load there, say)
+            # (a step may end on a tie: at the end of the span -- a zero load there, say -- or on a branch
+            # where a node sits exactly on its boundary; see _fixed_point)
             if step > 0 and _fixed_point(system, y_pred, Z):
                 self.alpha, self.y = a_new, y_pred
                 idx = path.add_point(self.branch, a_new, y_pred)
@@ -312,9 +313,9 @@ def _fixed_point(system, y, Z) -> bool:
     clamped on one side whose other side is unloaded once every node is open has N u = g and
     lam = 0 there for every alpha.  The strict test puts it in the active set, so no candidate of the
     branching algorithm passed and the seed's fold rule turned the path back at a transversal
-    transition.  (It was the test at a clipped end of the span before; a generic point has no tie,
-    and the strict test is tried first.)  Not for a fold's test at the branch end: there a toggle of
-    a tied node changes nothing and would pass."""
+    transition.  (A step that ends at a clipped end of the span needs the same closure: the load
+    may vanish there.  A generic point has no tie, and the strict test is tried first.)  Not for a
+    fold's test at the branch end: there a toggle of a tied node changes nothing and would pass."""
     return is_fixed_point(system, y, Z) or consistent_up_to_ties(system, y, Z)
 
 
