@@ -31,7 +31,7 @@ from cfcontact.case import CaseError, check_size, load_case, parse_component, py
 from cfcontact.errors import CfcontactError, InputError
 from cfcontact.interrupts import caused_by_interrupt
 from cfcontact.options import ALPHA_LIMIT
-from cfcontact.report import format_report, path_report, turned_back_text
+from cfcontact.report import format_report, path_report, turned_back_text, unverified_alphas, unverified_text
 from cfcontact.run import (
     DEFAULT_CHECKPOINT_EVERY,
     CaseRun,
@@ -199,10 +199,14 @@ def _run_case(args, case, run, stops, t_start):
             with _sigint(runner, progress):
                 path = run.trace(system, runner)
         _default_sigpipe()
+        unverified = unverified_alphas(path.events)
         if path.status != "completed":
             _warn(args, f"the path ended with status {path.status!r} (see the events in summary.json / info)")
         elif path.turned_back():
-            _warn(args, turned_back_text(path.reach(), path.alpha_start, getattr(path, "parameter", "alpha")))
+            _warn(args, turned_back_text(path.reach(), path.alpha_start, getattr(path, "parameter", "alpha"),
+                                         unverified=bool(unverified)))
+        if unverified:
+            _warn(args, unverified_text(unverified))
         if not run.traced and runner.reason is not None:  # a stop after the main run: the tree or the tries
             left = path.stats.get("untried_alternatives")
             _warn(args, f"{runner.reason} after the main run: " + (

@@ -151,12 +151,38 @@ def path_report(path, declared=None) -> dict:
     })
 
 
-def turned_back_text(reach, start, parameter="alpha") -> str:
+def turned_back_text(reach, start, parameter="alpha", unverified=False) -> str:
     """What a path that completed without reaching its end means (see SolutionPath.turned_back);
-    ``parameter``: the path's ("alpha", or "friction" for a path in F)."""
+    ``parameter``: the path's ("alpha", or "friction" for a path in F); ``unverified``: it has
+    transitions the seed method could not verify (:func:`unverified_text`), so the turn may be its
+    fold rule's and not the problem's."""
     par = "F" if parameter == "friction" else "alpha"
-    return (f"the path turned back: it reaches {par} = {reach:.10g} at most and left its range at {par} = {start:g}; "
-            f"beyond {reach:.10g} no solution lies on it (solutions there, if any, are not connected to the start)")
+    head = f"the path turned back: it reaches {par} = {reach:.10g} at most and left its range at {par} = {start:g}; "
+    if unverified:
+        return head + (f"it passed transitions that could not be verified, so solutions beyond {reach:.10g} may "
+                       f"still be connected to the start (method = \"exact\" follows them)")
+    return head + (f"beyond {reach:.10g} no solution lies on it (solutions there, if any, are not connected to the "
+                   f"start)")
+
+
+def unverified_alphas(events) -> list:
+    """The alphas of a path's "unverified_transition" events (PathEvent objects or their dicts)."""
+    out = []
+    for e in events:
+        kind, alpha = (e.get("kind"), e.get("alpha")) if isinstance(e, dict) else (e.kind, e.alpha)
+        if kind == "unverified_transition":
+            out.append(float(alpha))
+    return out
+
+
+def unverified_text(alphas) -> str:
+    """What the seed method's unverified transitions mean: no candidate set change gave a solution
+    on either side of the step (two set changes within h_min, say) and the fold rule was applied;
+    the path may have left the solution path there."""
+    where = ", ".join(f"{a:.10g}" for a in alphas[:5]) + (", ..." if len(alphas) > 5 else "")
+    return (f"{len(alphas)} transition(s) could not be verified (alpha = {where}): no candidate set change gave a "
+            f"solution there (e.g. two set changes closer than h_min) and the seed's fold rule was applied; the "
+            f"path may have left the solution path (method = \"exact\" resolves such points)")
 
 
 def format_report(rep, source) -> str:
@@ -171,8 +197,12 @@ def format_report(rep, source) -> str:
         lines.append(f"system checksum {rep['system_checksum']} (SHA-256 of n, m, K, N, T, f1, f2, friction, gap, rho)")
     if rep["alpha_of_max"] is not None:
         lines.append(f"max multiplicity {rep['max_multiplicity']} (at alpha = {rep['alpha_of_max']:.10g})")
+    unverified = unverified_alphas(rep.get("events", []))
     if rep.get("turned_back"):
-        lines.append(turned_back_text(rep["reach"], rep["alpha_start"], rep.get("parameter", "alpha")))
+        lines.append(turned_back_text(rep["reach"], rep["alpha_start"], rep.get("parameter", "alpha"),
+                                      unverified=bool(unverified)))
+    if unverified:
+        lines.append(unverified_text(unverified))
     lines.append("")
     if rep["transitions"]:
         lines.append("transitions:")

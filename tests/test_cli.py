@@ -198,6 +198,46 @@ def test_run_warns_when_the_path_turned_back(tmp_path, monkeypatch, capsys):
     assert summary["turned_back"] is True and summary["reach"] == 0.25
 
 
+UNVERIFIED = """[geometry]
+kind = "block_on_foundation"
+nx = 6
+ny = 2
+cell = "triangle"
+[contact]
+friction = 30.0
+[loads.f1]
+top1 = [-17511694.73680283, 27230397.169858932]
+[loads.f2]
+top1 = [34014175.402342595, -119631845.85064337]
+right1 = [4145032.102798818, 1788469.482427346]
+[path]
+method = "seed"
+[output]
+plot = false
+render_panel = false
+"""
+
+
+def test_run_and_info_say_when_the_seed_could_not_verify_a_transition(tmp_path, capsys):
+    """A block on a foundation at F = 30 where a node closes slipping and sticks 7e-8 later (two
+    set changes within h_min): the seed method finds no candidate, applies its fold rule and goes
+    back to alpha = 0 -- a turn of the method, not of the problem (the exact path reaches
+    alpha = 1).  The turned-back warning must not claim that no solution beyond is connected:
+    run and info say that a transition could not be verified, where, and what resolves it."""
+    case = _write(tmp_path, UNVERIFIED)
+    assert cli.main(["run", case]) == 0
+    err = capsys.readouterr().err
+    assert err.count("cfcontact: warning:") == 2
+    assert "the path turned back" in err and "may still be connected to the start" in err
+    assert "no solution lies on it" not in err
+    assert "1 transition(s) could not be verified (alpha = 0.229" in err and 'method = "exact"' in err
+    assert cli.main(["info", str(tmp_path / "case_out")]) == 0
+    out = capsys.readouterr().out
+    assert "1 transition(s) could not be verified" in out and "may still be connected" in out
+    exact = cfcontact.trace_path(case_file.build_system(case_file.load_case(case)), 0.0, 1.0, method="exact")
+    assert exact.status == "completed" and exact.reach() == 1.0
+
+
 def test_quiet_prints_nothing_verbose_shows_progress(tmp_path, capsys):
     case = _write(tmp_path, SMALL)
     assert cli.main(["run", case, "--quiet"]) == 0
