@@ -1810,9 +1810,11 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
                         changes=changes)
         path.transitions.append(tr)
         walk = _Walk.begin(ctx, path, ctx.line(codes, a), d, a, parent=from_b.index, origin=tr.index)
+        n_events = len(path.events)
         status = walk.run(callback)
         if status == "cycling" and _ctx is not None:
             status = "joined"  # the alternative runs into a branch of the tree
+            _joined_event(path, n_events)
         if status == "stopped by callback":
             walk.branch.alpha_exit = walk.alpha
     if path.lazy and getattr(ctx.solver, "size", 1) > 1:
@@ -1822,6 +1824,19 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
               "stats": {**{k: st[k] - stats0.get(k, 0) for k in st}, "wall_time": time.perf_counter() - t0}}
     ev.data.setdefault("followed", {})[str(alternative)] = result
     return result
+
+
+def _joined_event(path, since: int):
+    """In a tree, a sub-run that enters a branch already traced has joined the tree: its walk's
+    "cycling" event (recorded from ``since`` on, worded for a path that revisits its own branch: "a
+    numerical inconsistency") becomes a "joined" event."""
+    for k in range(len(path.events) - 1, since - 1, -1):
+        e = path.events[k]
+        if e.kind == "cycling":
+            first = e.data.get("first_alpha")
+            path.events[k] = PathEvent("joined", e.alpha, f"the alternative reaches a branch of the tree (entered "
+                                       f"first at alpha={first!r}): it ends there", e.branch, e.data)
+            return
 
 
 def _backtrack(system, path, options, solver, status: str, callback=None) -> str:

@@ -337,3 +337,21 @@ def test_exact_transition_onto_a_branch_whose_crossed_constraint_has_no_rate():
     for t in path.transitions:
         for b in (t.from_branch, t.to_branch):
             assert cfcontact.verify(system, path.branch_y(b, t.alpha), t.alpha).worst() < 1e-10
+
+
+def test_a_tree_alternative_that_runs_into_the_tree_ends_joined():
+    """A cylinder at F = 30 whose exact path has one branch point (alpha ~ 0.9194): the fold
+    alternative goes back 2e-14 in alpha and enters the branch the main path came from.  In a tree
+    that is where the alternative joins the tree: status "joined", and a "joined" event -- not the
+    "cycling" event of a path revisiting its own branch ("a numerical inconsistency"), which
+    `cfcontact info` listed."""
+    system = cfcontact.cylinder_on_block(friction=30.0, indentation=(0.008018832492423484, 0.01619364866998529),
+                                         cell="triangle", size=0.05992678918563923)
+    tree = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
+    assert tree.status == "completed"
+    kinds = [e.kind for e in tree.events]
+    assert kinds.count("branch_point") == 1 and "cycling" not in kinds and kinds.count("joined") == 1
+    (bp,) = [e for e in tree.events if e.kind == "branch_point"]
+    assert [r["status"] for r in bp.data["followed"].values()] == ["joined"]
+    joined = tree.events[kinds.index("joined")]
+    assert "reaches a branch of the tree" in joined.message and joined.data["first_alpha"] < joined.alpha
