@@ -178,10 +178,12 @@ def _canon(system, sets) -> np.ndarray:
     return canonical_codes(sets, system.friction, system.no_tangent)
 
 
-def node_kinds(system) -> np.ndarray:
-    """Per node: 0 (F > 0), 1 (F = 0), 2 (no tangential unknown): the second index of the tables."""
-    return np.where(np.asarray(system.no_tangent, dtype=bool), 2,
-                    np.where(system.friction_vector == 0.0, 1, 0)).astype(np.intp)
+def node_kinds(system, friction=None) -> np.ndarray:
+    """Per node: 0 (F > 0), 1 (F = 0), 2 (no tangential unknown): the second index of the tables.
+    ``friction``: per-node coefficients to use instead of the system's (a path in F passes its
+    pattern phi: kind 1 where phi = 0, no friction at any F)."""
+    F = system.friction_vector if friction is None else np.asarray(friction)
+    return np.where(np.asarray(system.no_tangent, dtype=bool), 2, np.where(F == 0.0, 1, 0)).astype(np.intp)
 
 
 def sets_from_codes(codes) -> InactiveSets:

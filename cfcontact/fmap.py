@@ -51,10 +51,10 @@ from typing import Optional
 import numpy as np
 
 from cfcontact.errors import CfcontactError, InputError
-from cfcontact.exact import canonical_codes, trace_exact
+from cfcontact.exact import canonical_codes, node_kinds, trace_exact
 from cfcontact.jsonio import jsonable
 from cfcontact.options import PathOptions
-from cfcontact.rational import RationalBranch, friction_pattern, node_kinds, polish_root, solver_at
+from cfcontact.rational import RationalBranch, friction_pattern, polish_root, solver_at
 from cfcontact.solution_path import SET_NAMES
 
 log = logging.getLogger(__name__)

@@ -51,11 +51,12 @@ from cfcontact.exact import (
     _resolve,
     _Unresolved,
     canonical_codes,
+    node_kinds,
     sets_from_codes,
 )
 from cfcontact.jsonio import jsonable
 from cfcontact.options import AlphaSpan, PathOptions
-from cfcontact.rational import RationalBranch, friction_pattern, mu_at, node_kinds, polish_root, solver_at
+from cfcontact.rational import RationalBranch, friction_pattern, mu_at, polish_root, solver_at
 from cfcontact.solution_path import SET_NAMES, Branch, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, Solution, verify
 from cfcontact.stepper import Stepper, check_monitor
@@ -344,7 +345,8 @@ def _start_codes(system, solver, alpha, F, pattern, opts, monitor=None) -> tuple
     SSNM in the multipliers, else the exact method's homotopy from the frictionless solution or
     from the all-open state, else enumeration (small problems).  At F = 0 a closed node with
     friction slips in the direction of its T u (stick when T u = 0): the states of F = 0+.  A
-    closed node without tangential unknown sticks.  ``monitor``: as for :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
+    closed node without tangential unknown sticks.  ``monitor``: as for
+    :func:`cfcontact.exact.trace_exact` (the homotopy start's progress)."""
     sysF = friction_system(system, F, pattern)
     view = solver_at(solver, sysF)
     f = system.load(alpha)

@@ -60,13 +60,6 @@ BRACKET_MAX = 1e-4
 IMAG_RTOL = 1e-6
 
 
-def node_kinds(system, phi) -> np.ndarray:
-    """Per node, the kind the exact method's tables index by, for node friction F phi: 2 for a node
-    without tangential unknown (``system.no_tangent``), 1 where phi = 0 (no friction at any F), 0
-    otherwise."""
-    return np.where(np.asarray(system.no_tangent, dtype=bool), 2, np.asarray(phi) == 0.0).astype(np.intp)
-
-
 def friction_pattern(system) -> np.ndarray:
     """phi with the system's node friction = F phi: its friction vector over its largest entry
     (ones when frictionless).  A path over F scales every node's coefficient by one factor."""
@@ -96,9 +89,10 @@ class RationalBranch:
     """The branch of state ``codes`` as a function of F (see the module docstring).
 
     ``S``, ``rho``: the condensed data; ``phi``: the friction pattern (node friction F phi_i);
-    ``F0_index``: the node kinds of the exact method's constraint table (:func:`node_kinds`): 1
-    for nodes without friction at any F (phi_i = 0), 2 for nodes without tangential unknown (their
-    T row is zero: lam_t = 0 and no equation (T u)_i = 0 however they are coded)."""
+    ``F0_index``: the node kinds of the exact method's constraint table
+    (:func:`cfcontact.exact.node_kinds` of phi): 1 for nodes without friction at any F (phi_i = 0),
+    2 for nodes without tangential unknown (their T row is zero: lam_t = 0 and no equation
+    (T u)_i = 0 however they are coded)."""
 
     def __init__(self, S, rho, codes, phi, F0_index):
         codes = np.asarray(codes, dtype=np.int8)
