@@ -270,18 +270,30 @@ class SolutionPath:
         that the branch's exit point is not extrapolated from its entry along rates that carry
         its rounding (on a slender body a steep slip rate, 1e13 per unit alpha, put a stored
         exit 47 N off its own vanishing condition); every linear condition that holds at both
-        ends (the branch's equations) holds along the chord."""
+        ends (the branch's equations) holds along the chord.
+
+        The branch is then referenced at whichever end has the smaller multipliers: values read
+        off the chord carry the rounding of its reference point, so a branch that unloads towards
+        zero (its exit at a load f = 0, say) keeps its exit exact instead of a remainder of its
+        entry's size, which against the exit's own size is no solution (1e-16 of the entry's
+        multipliers, an equilibrium residual of 2e-5 of the point's own forces)."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
         if b not in self._lam:
             return
         a_r, lr, _ = self._lam[b]
-        da = float(alpha) - a_r
+        alpha = float(alpha)
+        da = alpha - a_r
         if da == 0.0:
             return
-        self._lam[b] = (a_r, lr, (np.asarray(lam, dtype=float) - lr) / da)
+        lam = np.array(lam, dtype=float)
+        dl = (lam - lr) / da
+        at_exit = np.abs(lam).max(initial=0.0) < np.abs(lr).max(initial=0.0)
+        self._lam[b] = (alpha, lam, dl) if at_exit else (a_r, lr, dl)
         if indicators is not None and b in self._ind and self._ind[b][0] == a_r:
+            gx = np.array(indicators, dtype=float)
             gr = self._ind[b][1]
-            self._ind[b] = (a_r, gr, (np.asarray(indicators, dtype=float) - gr) / da)
+            dg = (gx - gr) / da
+            self._ind[b] = (alpha, gx, dg) if at_exit else (a_r, gr, dg)
 
     def start_branch_at(self, branch, alpha, lam, indicators=None):
         """Make a lazy branch referenced at ``alpha`` start from (alpha, lam) (and the indicators,

@@ -285,3 +285,27 @@ def test_schur_complement_calls_are_found_by_feature_detection():
     ksp.setUp()
     Sc = compat_petsc.factor_schur_complement(ksp.getPC().getFactorMatrix(), 2)
     np.testing.assert_allclose(Sc, 2.0 * np.eye(2))
+
+
+def test_a_branch_that_unloads_to_zero_is_saved_exact_at_its_exit(tmp_path):
+    """A cylinder pressed in and released (the top's displacement from 0.01 back to 0, alpha from
+    1 to 0): the last branch ends at zero load, where every quantity vanishes.  Its stored chord was
+    referenced at its entry, so the saved path's last points were the entry's rounding (1e-16 of
+    the entry's multipliers), no solution at their own size: residual 0.16 (equal materials) and
+    2e-5 (a stiff block).  Referenced at the smaller end, the saved points verify like the path's
+    own."""
+    from cfcontact.models import cylinder_on_block
+    from cfcontact.solution_path import SolutionPath
+    from cfcontact.ssnm import verify
+
+    for E in (2.1e11, {"body1": 2.1e9, "body2": 2.1e13}):
+        system = cylinder_on_block(size=0.08, size_far=0.5, friction=0.6, E=E,
+                                   dirichlet={"top1": {"x": (0.0, 0.0), "y": (0.0, -0.01)}})
+        path = cfcontact.trace_path(system, 1.0, 0.0, method="exact")
+        assert path.status == "completed" and path.transitions and path.alphas[-1] == 0.0
+        path.save(tmp_path / "path")
+        saved = SolutionPath.load(tmp_path / "path")
+        for live, (a, y) in zip(path.iter_points(), saved.iter_points()):
+            assert a == live[0]
+            assert verify(system, live[1], a).worst() < 1e-12
+            assert verify(system, y, a).worst() < 1e-12, (E, a)
