@@ -614,6 +614,12 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
         return None, None, None
     # uncertainty of each root: its data's, and the rounding of alpha itself near a_star
     err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate + ALPHA_ULPS * np.spacing(abs(a_star))
+    if s * (bound - a_star) <= err[j]:
+        # the root is the end of the range within its own uncertainty: the path ends there (a
+        # load path from or to f = 0 has every constraint of its last branch vanish at alpha = 0,
+        # rounded to either side; taken as transitions, they cascaded through 1e-82, 1e-150, ...,
+        # each point the rounding of its branch's entry, no solution at its own size)
+        return None, None, None
     tied = dec[(t - t[j]) <= err + err[j]]
     return a_star, tied, float(err[j])
 
@@ -1296,6 +1302,12 @@ class _Walk:
         if a_star is None:
             a_end = ctx.hi if s > 0 else ctx.lo
             branch.alpha_exit = a_end
+            if a_end != self.alpha:
+                # the end point from a solve of its own, not extrapolated from the entry: where the
+                # path ends at a small load (an unloading to f = 0) the entry's rounding would be
+                # all there is of the solution there
+                end = ctx.line(ln.codes, a_end)
+                path.end_branch_at(branch, a_end, end.lam, end.g, y=lambda: end.Y()[0])
             return "end", path.add_point(branch, a_end)
         limit = ctx.opts.max_transitions
         if len(path.transitions) - self.n_trans0 >= limit:

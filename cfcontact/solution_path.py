@@ -72,6 +72,11 @@ class PathPoint:
         return f"PathPoint(index={self.index}, alpha={self.alpha!r}, branch={self.branch})"
 
 
+def _size(x) -> float:
+    """max |x| (0 for an empty array)."""
+    return float(np.abs(np.asarray(x, dtype=float)).max(initial=0.0))
+
+
 @dataclass
 class Branch:
     """An oriented linear branch: inactive sets, orientation and the points the path took on it.
@@ -263,37 +268,52 @@ class SolutionPath:
             self._Y[b.index] = ref_form((Y1, Y2))
         return b
 
-    def end_branch_at(self, branch, alpha, lam, indicators=None):
-        """Make a lazy branch pass through (alpha, lam) (and the indicators, 3m, when given): its
-        multipliers and indicators become the chord from its reference point to there.  The
-        exact method passes the next branch's entry point, a fresh solve at the transition, so
-        that the branch's exit point is not extrapolated from its entry along rates that carry
-        its rounding (on a slender body a steep slip rate, 1e13 per unit alpha, put a stored
-        exit 47 N off its own vanishing condition); every linear condition that holds at both
-        ends (the branch's equations) holds along the chord.
+    def end_branch_at(self, branch, alpha, lam, indicators=None, y=None):
+        """Make a branch pass through its exit point at alpha: a lazy branch through (alpha, lam)
+        (and the indicators, 3m, when given), a branch with displacements through ``y`` (the
+        whole point, or a function that forms it; lam and indicators are then ignored).  Its values become the chord from its
+        reference point to there.  The exact method passes the next branch's entry point, a fresh
+        solve at the transition, so that the branch's exit point is not extrapolated from its
+        entry along rates that carry its rounding (on a slender body a steep slip rate, 1e13 per
+        unit alpha, put a stored exit 47 N off its own vanishing condition); every linear
+        condition that holds at both ends (the branch's equations) holds along the chord.
 
-        The branch is then referenced at whichever end has the smaller multipliers: values read
-        off the chord carry the rounding of its reference point, so a branch that unloads towards
-        zero (its exit at a load f = 0, say) keeps its exit exact instead of a remainder of its
-        entry's size, which against the exit's own size is no solution (1e-16 of the entry's
-        multipliers, an equilibrium residual of 2e-5 of the point's own forces)."""
+        The branch is then referenced at whichever end has the smaller multipliers (the smaller
+        indicators, or displacements, where both ends have the same): values read off the chord carry the rounding of its reference point, so a
+        branch that unloads towards zero (its exit at a load f = 0, say) keeps its exit exact
+        instead of a remainder of its entry's size, which against the exit's own size is no
+        solution (1e-16 of the entry's values: equilibrium residuals of 2e-5 to 1 of the point's
+        own size)."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
-        if b not in self._lam:
-            return
-        a_r, lr, _ = self._lam[b]
         alpha = float(alpha)
-        da = alpha - a_r
-        if da == 0.0:
-            return
-        lam = np.array(lam, dtype=float)
-        dl = (lam - lr) / da
-        at_exit = np.abs(lam).max(initial=0.0) < np.abs(lr).max(initial=0.0)
-        self._lam[b] = (alpha, lam, dl) if at_exit else (a_r, lr, dl)
-        if indicators is not None and b in self._ind and self._ind[b][0] == a_r:
-            gx = np.array(indicators, dtype=float)
-            gr = self._ind[b][1]
-            dg = (gx - gr) / da
-            self._ind[b] = (alpha, gx, dg) if at_exit else (a_r, gr, dg)
+        if b in self._lam:
+            a_r, lr, _ = self._lam[b]
+            da = alpha - a_r
+            if da == 0.0:
+                return
+            lam = np.array(lam, dtype=float)
+            ind = self._ind.get(b) if indicators is not None else None
+            if ind is not None and ind[0] != a_r:
+                ind = None
+            # (an open branch, lam = 0 at both ends: by its indicators, the gaps)
+            at_exit = ((_size(lam), _size(indicators) if ind is not None else 0.0)
+                       < (_size(lr), _size(ind[1]) if ind is not None else 0.0))
+            dl = (lam - lr) / da
+            self._lam[b] = (alpha, lam, dl) if at_exit else (a_r, lr, dl)
+            if ind is not None:
+                gx = np.array(indicators, dtype=float)
+                dg = (gx - ind[1]) / da
+                self._ind[b] = (alpha, gx, dg) if at_exit else (a_r, ind[1], dg)
+        elif y is not None and b in self._Y:
+            a_r, Yr, _ = self._Y[b]
+            da = alpha - a_r
+            if da == 0.0:
+                return
+            y = np.array(y() if callable(y) else y, dtype=float)
+            n = self.n
+            dY = (y - Yr) / da
+            at_exit = (_size(y[n:]), _size(y[:n])) < (_size(Yr[n:]), _size(Yr[:n]))
+            self._Y[b] = (alpha, y, dY) if at_exit else (a_r, Yr, dY)
 
     def start_branch_at(self, branch, alpha, lam, indicators=None):
         """Make a lazy branch referenced at ``alpha`` start from (alpha, lam) (and the indicators,

@@ -309,3 +309,25 @@ def test_a_branch_that_unloads_to_zero_is_saved_exact_at_its_exit(tmp_path):
             assert a == live[0]
             assert verify(system, live[1], a).worst() < 1e-12
             assert verify(system, y, a).worst() < 1e-12, (E, a)
+
+
+@pytest.mark.parametrize("backend", ["condensed", "full"])
+def test_a_path_to_zero_load_ends_there_without_transitions_of_rounding(backend, tmp_path):
+    """f1 = 0: on a branch that reaches alpha = 0 every quantity is proportional to alpha, so every
+    constraint vanishes there, rounded to either side.  The roots just inside the range were taken
+    as transitions, which cascaded (alpha = 2e-82, 2e-150, 0), each stored point the rounding of
+    its branch's entry (residuals up to 0.85).  A root within its uncertainty of the range's end is
+    the end; the end point is solved for, not extrapolated, on both backends (an open branch too)."""
+    from cfcontact.models import two_blocks
+    from cfcontact.solution_path import SolutionPath
+    from cfcontact.ssnm import verify
+
+    for ty in (-5e7, 5e7):  # pressed (closed and slipping nodes), lifted (every node open)
+        system = two_blocks(nx=8, ny=3, friction=0.5, tractions1={}, tractions2={"top1": (3e7, ty)})
+        path = cfcontact.trace_path(system, 0.7, 0.0, method="exact", backend=backend)
+        assert path.status == "completed" and not path.transitions
+        assert list(path.alphas) == [0.7, 0.0]
+        saved = SolutionPath.load(path.save(tmp_path / f"p{ty}"))
+        for a, y in saved.iter_points():
+            assert verify(system, y, a).worst() < 1e-12, (ty, a)
+        assert np.abs(saved.ys[-1]).max() < 1e-20  # the solution at zero load is zero
