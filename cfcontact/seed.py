@@ -218,8 +218,9 @@ _UNVERIFIED = object()
 
 
 # ------------------------------------------------------------------ branching
-def _ranked_toggles(system, y, sets, limit=8):
-    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``.
+def _ranked_toggles(system, y, sets, limit=8, order=None):
+    """Non-trivial single toggles ordered by |indicator| (rule (17)), at most ``limit``; or in the
+    given ``order`` (indices into the stacked indicators (a, bp, bm), 3m).
 
     Toggles that cannot change DirNeu's solution (the tangential set of an open node, or of a
     node with F = 0 between I_t^+ and I_t^-) are skipped, and so are the tangential toggles of
@@ -239,7 +240,7 @@ def _ranked_toggles(system, y, sets, limit=8):
     _, tp_tie, tm_tie = indicator_ties(system, y)
     vals = np.concatenate([np.abs(a), np.abs(bp), np.abs(bm)])
     out = []
-    for k in np.argsort(vals, kind="stable"):
+    for k in (np.argsort(vals, kind="stable") if order is None else order):
         kind, i = SET_NAMES[k // system.m], int(k % system.m)
         if kind != "nu" and (no_tangent[i] or sets.nu[i]):
             continue
@@ -272,6 +273,17 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
     if not singles:
         return None
     a1 = alpha + s * h_fail
+    y_old_1 = solver.solve(Z, load(a1)) if lo <= a1 <= hi else None
+    if y_old_1 is not None:
+        # After the seed's own choice, the indicators that change sign over the failed step (on the
+        # old branch), nearest root first: the constraint the step could not cross.  Rule (17)
+        # compares indicators of different kinds by size (a multiplier against rho times a slip),
+        # and on soft bodies a slipping node's indicator can be thousands of times the closed
+        # nodes' lam_n a step before its root, which left it out of the first eight.
+        crossing = _crossing_toggles(system, y, y_old_1, Z)
+        seen = {(singles[0][1], singles[0][2])}
+        extra = [c for c in crossing if (c[1], c[2]) not in seen]
+        singles = singles[:1] + extra + [c for c in singles[1:] if (c[1], c[2]) not in {(e[1], e[2]) for e in extra}]
     cands = [(c[3], [(c[1], c[2])]) for c in singles]
     top = singles[:4]
     for i in range(len(top)):
@@ -280,7 +292,6 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
                 continue
             Zp = _toggled(top[i][3], top[j][1], top[j][2], system.no_tangent)
             cands.append((Zp, [(top[i][1], top[i][2]), (top[j][1], top[j][2])]))
-    y_old_1 = None
     for Zn, changes in cands:
         node, kind = changes[0]
         y1 = solver.solve(Zn, load(a1)) if lo <= a1 <= hi else None
@@ -288,8 +299,6 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
         # for the seed's own choice: at a near-tie the minimizer of (17) can be a node whose
         # toggle leads onto another branch that is consistent at alpha + s h_fail -- back onto
         # the branch the path came from, say -- a jump the fixed-point test does not see)
-        if y_old_1 is None:
-            y_old_1 = solver.solve(Z, load(a1)) if y1 is not None else None
         y2 = solver.solve(Zn, load(alpha))
         jump = np.linalg.norm(y2 - y)
         scale = np.linalg.norm(y) + 1e-300
@@ -305,6 +314,19 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
     node, kind = changes[0]
     return ("fold", node, kind, Zn, -s, alpha, solver.solve(Zn, load(alpha)), False,
             [{"node": node, "set": kind}])
+
+
+def _crossing_toggles(system, y0, y1, sets, limit=4):
+    """The toggles of the indicators that change sign between y0 and y1 (two points of one
+    branch), ordered by where their linear interpolation vanishes (nearest y0 first), at most
+    ``limit``; filtered as :func:`_ranked_toggles`."""
+    g0 = np.concatenate(indicators(system, y0))
+    g1 = np.concatenate(indicators(system, y1))
+    k = np.flatnonzero((g0 != 0.0) & (np.sign(g0) != np.sign(g1)))
+    if not k.size:
+        return []
+    t = g0[k] / (g0[k] - g1[k])
+    return _ranked_toggles(system, y0, sets, limit=limit, order=k[np.argsort(t, kind="stable")])
 
 
 def _fixed_point(system, y, Z) -> bool:

@@ -161,8 +161,9 @@ def _branch_codes(path):
     return [b.sets.state_codes().tolist() for b in path.branches]
 
 
-@pytest.mark.parametrize("case", ["sticking node opens", "near-tie minimizer jumps"])
-def test_seed_follows_the_exact_branches_at_degenerate_transitions(case):
+@pytest.mark.parametrize("case,transitions", [("sticking node opens", 7), ("near-tie minimizer jumps", 7),
+                                              ("a slipping node's indicator ranks ninth", 24)])
+def test_seed_follows_the_exact_branches_at_degenerate_transitions(case, transitions):
     """Two transitions the seed's branching algorithm got wrong (found by a sweep of random
     variants; both turned its path back before alpha = 1):
 
@@ -172,11 +173,23 @@ def test_seed_follows_the_exact_branches_at_degenerate_transitions(case):
     * two blocks at F = 30 on a non-matching interface: at the second of two folds 0.0006 apart the
       minimizer of (17) led back onto the open branch the path came from (consistent there, but
       not continuous with the branch being left).  The seed's own choice is now checked for
-      continuity as the other candidates were."""
+      continuity as the other candidates were.
+    * soft blocks on rollers (E = 2.1e9 on 2.1e6), F = 0.6: a node that had just closed slipping
+      goes on sticking.  A step before its root its indicator (lam_t + rho T u + F lam_n, rho of
+      the stiff block) was larger than eight closed nodes' lam_n, so rule (17) left it out of the
+      candidates, the fold rule was applied and the path cycled.  The indicators that change sign
+      over the failed step are now tried right after the seed's own choice."""
     if case == "sticking node opens":
         system = cfcontact.arc_on_block(nx=4, ny=2, half_angle=52.22950899853359, cell="triangle", friction=0.3,
                                         tractions1={"top1": (-69256995.85, 16998109.49)},
                                         tractions2={"top1": (60681730.87, -108134746.94)})
+    elif case.startswith("a slipping"):
+        system = cfcontact.two_blocks(
+            nx=12, ny=2, cell="triangle", E={"body1": 2.1e9, "body2": 2.1e6}, nu=0.45, friction=0.6,
+            clamp=("left1",), dirichlet={"bottom2": {"y": 0.0}, "left2": {"x": 0.0}},
+            body_force1=(0.0, -372090.288351006), tractions1={"top1": (417543.48068758706, -925423.0971665207)},
+            tractions2={"top1": [(-439303.3557341346, -450768.41825452284),
+                                 {"value": (421982.0659854218, 0.0), "x": (1.2385163859024642, 1.8385163859024642)}]})
     else:
         system = cfcontact.two_blocks(nx=3, ny=3, nx2=10, pairing="segment", cell="quadrilateral", angle=-30.0,
                                       friction=30.0, tractions1={"top1": (-58753826.95, 25382302.67)},
@@ -185,7 +198,7 @@ def test_seed_follows_the_exact_branches_at_degenerate_transitions(case):
     exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
     seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
     assert exact.status == seed.status == "completed" and exact.reach() == seed.reach() == 1.0
-    assert len(exact.transitions) == 7
+    assert len(exact.transitions) == transitions
     assert _branch_codes(seed) == _branch_codes(exact)
     assert [t.kind for t in seed.transitions] == [t.kind for t in exact.transitions]
     for t, e in zip(seed.transitions, exact.transitions):
