@@ -681,12 +681,44 @@ def _exit_on_late_interrupt():
     signal.signal(signal.SIGINT, handler)
 
 
+#: (size, rank) variables of the MPI launchers: Open MPI, MPICH / Intel MPI (Hydra), PMIx
+_MPI_ENV = (("OMPI_COMM_WORLD_SIZE", "OMPI_COMM_WORLD_RANK"), ("PMI_SIZE", "PMI_RANK"), ("PMIX_SIZE", "PMIX_RANK"))
+
+
+def mpi_launch() -> tuple:
+    """(ranks, rank) of the MPI job this process was started in: from the launcher's environment,
+    or from mpi4py's COMM_WORLD when mpi4py is already imported (it is not imported for this);
+    (1, 0) when not started by mpirun."""
+    for size_var, rank_var in _MPI_ENV:
+        try:
+            size = int(os.environ.get(size_var, "1"))
+            rank = int(os.environ.get(rank_var, "0"))
+        except ValueError:
+            continue
+        if size > 1:
+            return size, rank
+    mpi = sys.modules.get("mpi4py.MPI")
+    if mpi is not None and mpi.Is_initialized():
+        return mpi.COMM_WORLD.size, mpi.COMM_WORLD.rank
+    return 1, 0
+
+
 def _main(argv) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: --help / --version (0) or a usage error (2)
         return int(exc.code or 0)
+    ranks, rank = mpi_launch()
+    if ranks > 1:
+        # every rank would run the whole command and write the same files: refused before any work
+        # (the library's solvers run under MPI; the command line writes files from one process)
+        if rank == 0:
+            print(f"cfcontact {args.command}: error: the command line runs as one process, but it was started as "
+                  f"{ranks} MPI ranks (mpirun -n {ranks}); run it without mpirun, or run a Python script under "
+                  f"mpirun: every solver of the library runs in parallel (docs/cli.md, \"Parallel runs\")",
+                  file=sys.stderr, flush=True)
+        return EXIT_INPUT
     level = logging.ERROR if args.quiet else logging.INFO if args.verbose else logging.WARNING
     with _logging(level):
         try:

@@ -115,3 +115,33 @@ def test_mpi_seed_start_where_ssnm_fails_matches_serial(tmp_path, run_mpi):
     np.testing.assert_allclose(par["alphas"], serial["alphas"], rtol=0, atol=1e-10)
     ref = serial["y_end"]
     assert np.abs(par["y_end"] - ref).max() <= 1e-9 * np.abs(ref).max()
+
+
+@pytest.mark.mpi
+def test_parallel_demo_equals_the_serial_command_line_which_refuses_mpirun(tmp_path, run_mpi):
+    """demos/parallel.py under mpirun -n 2 saves the path `cfcontact run` traces serially (same
+    system checksum, set changes and transitions); `cfcontact run` itself under mpirun refuses
+    (exit 2, one line from rank 0) before any work, where every rank had raced for the output
+    folder's lock and the ranks hung."""
+    import subprocess
+
+    from cfcontact.cli import main as cli_main
+    from cfcontact.solution_path import SolutionPath
+    from conftest import ROOT, mpirun_cmd
+
+    case = os.path.join(ROOT, "demos", "cases", "folds.toml")
+    proc = run_mpi(2, os.path.join(ROOT, "demos", "parallel.py"), case, str(tmp_path / "par"), timeout=600)
+    assert "2 rank(s): completed" in proc.stdout
+    assert cli_main(["run", case, "-o", str(tmp_path / "ser"), "-q"]) == 0
+    par, ser = SolutionPath.load(tmp_path / "par" / "path"), SolutionPath.load(tmp_path / "ser" / "path")
+    assert par.system_checksum == ser.system_checksum and par.status == ser.status == "completed"
+    assert [t.changes for t in par.transitions] == [t.changes for t in ser.transitions]
+    assert len(ser.transitions) >= 20 and len(ser.folds) == 2
+    np.testing.assert_allclose([t.alpha for t in par.transitions], [t.alpha for t in ser.transitions],
+                               rtol=0, atol=1e-10)
+    cmd = mpirun_cmd(2, "-m", "cfcontact", "run", case, "-o", str(tmp_path / "cli"))
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300, cwd=ROOT)
+    assert refused.returncode != 0
+    assert refused.stderr.count("cfcontact run: error: the command line runs as one process") == 1
+    assert "2 MPI ranks" in refused.stderr and not (tmp_path / "cli").exists()
