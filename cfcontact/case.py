@@ -713,7 +713,13 @@ def _validate_path(table):
         raise CaseError(f"[path] backend: unknown backend {path['backend']!r}; valid: {', '.join(map(repr, BACKENDS))}")
     try:
         options = PathOptions(**{k: v for k, v in path.items() if k in PathOptions.names()})
-        span = AlphaSpan.of(path["alpha_start"], path["alpha_end"], options)
+        if path.get("parameter") == "friction":
+            # a path in F at the fixed load f(alpha_start): alpha_end plays no part (alpha_start = 1,
+            # the full load, with the default alpha_end = 1 was refused as an empty alpha range)
+            a0 = AlphaSpan.of(path["alpha_start"], path["alpha_start"] + 1.0, PathOptions()).start
+            span = AlphaSpan(a0, a0, a0, a0)
+        else:
+            span = AlphaSpan.of(path["alpha_start"], path["alpha_end"], options)
     except InputError as exc:
         raise CaseError(f"[path] {exc}") from None
     return path, (options, span)

@@ -34,6 +34,9 @@ def main(argv=None):
     system = build_system(case)  # assembled in parallel: K, N, T distributed over the ranks
     options, span = path_request(case)
     path_options = case["path"]
+    if path_options["parameter"] != "alpha":
+        ap.error(f"{args.case}: [path] parameter = {path_options['parameter']!r}; this script traces load paths "
+                 f"(parameter = \"alpha\")")
     path = cfcontact.trace_path(system, span.start, span.end, method=path_options["method"], options=options,
                                 backend=path_options["backend"])
     path.form()  # collective: the displacements of the lazily stored branches

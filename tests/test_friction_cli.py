@@ -50,6 +50,23 @@ def test_friction_case_run_info_plot_stop_and_resume(tmp_path, capsys):
     assert np.allclose([t.alpha for t in again.transitions], [t.alpha for t in full.transitions], rtol=1e-13)
 
 
+def test_friction_case_at_the_full_load_needs_no_alpha_range(tmp_path, capsys):
+    """A path in F at alpha_start = 1 (the full load f2): alpha_end (default 1) plays no part; it was
+    refused as "alpha range is empty".  The path is that of the library at f(1)."""
+    import cfcontact
+    from cfcontact.case import build_system, load_case
+
+    case = _case(tmp_path, 'parameter = "friction"\nalpha_start = 1.0\nfriction_end = 5.0')
+    assert cli.main(["run", case, "-q"]) == 0
+    saved = load_path(str(tmp_path / "case_out" / "path"))
+    ref = cfcontact.trace_friction_path(build_system(load_case(case)), 1.0, 0.0, 5.0)
+    assert saved.status == ref.status == "completed" and len(ref.transitions) >= 1
+    assert [(t.kind, t.node, t.set) for t in saved.transitions] == [(t.kind, t.node, t.set) for t in ref.transitions]
+    bad = _case(tmp_path, 'alpha_start = 1.0', "alpha.toml")  # an alpha path still needs a range
+    assert cli.main(["run", bad]) == cli.EXIT_INPUT
+    assert "alpha range is empty" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("keys, words", [
     ('parameter = "load"', "parameter"),
     ('parameter = "friction"\nfriction_start = 2.0\nfriction_end = 2.0', "friction_start"),
