@@ -120,7 +120,7 @@ def test_mpi_seed_start_where_ssnm_fails_matches_serial(tmp_path, run_mpi):
 @pytest.mark.mpi
 def test_parallel_demo_equals_the_serial_command_line_which_refuses_mpirun(tmp_path, run_mpi):
     """demos/parallel.py under mpirun -n 2 saves the path `cfcontact run` traces serially (same
-    system checksum, set changes and transitions); `cfcontact run` itself under mpirun refuses
+    set changes and transitions, points within 1e-9); `cfcontact run` itself under mpirun refuses
     (exit 2, one line from rank 0) before any work, where every rank had raced for the output
     folder's lock and the ranks hung."""
     import subprocess
@@ -134,7 +134,8 @@ def test_parallel_demo_equals_the_serial_command_line_which_refuses_mpirun(tmp_p
     assert "2 rank(s): completed" in proc.stdout
     assert cli_main(["run", case, "-o", str(tmp_path / "ser"), "-q"]) == 0
     par, ser = SolutionPath.load(tmp_path / "par" / "path"), SolutionPath.load(tmp_path / "ser" / "path")
-    assert par.system_checksum == ser.system_checksum and par.status == ser.status == "completed"
+    assert par.status == ser.status == "completed"  # (checksums: equal here, but assembly sums may round apart)
+    assert np.abs(par.ys - ser.ys).max() <= 1e-9 * np.abs(ser.ys).max()
     assert [t.changes for t in par.transitions] == [t.changes for t in ser.transitions]
     assert len(ser.transitions) >= 20 and len(ser.folds) == 2
     np.testing.assert_allclose([t.alpha for t in par.transitions], [t.alpha for t in ser.transitions],
