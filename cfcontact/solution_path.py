@@ -279,7 +279,7 @@ class SolutionPath:
         condition that holds at both ends (the branch's equations) holds along the chord.
 
         The branch is then referenced at whichever end has the smaller multipliers (the smaller
-        indicators, or displacements, where both ends have the same): values read off the chord carry the rounding of its reference point, so a
+        relative displacements B u, or displacements, where both ends have the same): values read off the chord carry the rounding of its reference point, so a
         branch that unloads towards zero (its exit at a load f = 0, say) keeps its exit exact
         instead of a remainder of its entry's size, which against the exit's own size is no
         solution (1e-16 of the entry's values: equilibrium residuals of 2e-5 to 1 of the point's
@@ -295,9 +295,9 @@ class SolutionPath:
             ind = self._ind.get(b) if indicators is not None else None
             if ind is not None and ind[0] != a_r:
                 ind = None
-            # (an open branch, lam = 0 at both ends: by its indicators, the gaps)
-            at_exit = ((_size(lam), _size(indicators) if ind is not None else 0.0)
-                       < (_size(lr), _size(ind[1]) if ind is not None else 0.0))
+            # (an open branch, lam = 0 at both ends: by its relative displacements B u)
+            at_exit = ((_size(lam), self._contact_size(lam, indicators) if ind is not None else 0.0)
+                       < (_size(lr), self._contact_size(lr, ind[1]) if ind is not None else 0.0))
             dl = (lam - lr) / da
             self._lam[b] = (alpha, lam, dl) if at_exit else (a_r, lr, dl)
             if ind is not None:
@@ -314,6 +314,15 @@ class SolutionPath:
             dY = (y - Yr) / da
             at_exit = (_size(y[n:]), _size(y[:n])) < (_size(Yr[n:]), _size(Yr[:n]))
             self._Y[b] = (alpha, y, dY) if at_exit else (a_r, Yr, dY)
+
+    def _contact_size(self, lam, ind) -> float:
+        """max |B u| of a point given by its multipliers and indicators (a, bp, bm) of (17):
+        N u - g = (a - lam_n) / rho, T u = ((bp + bm) / 2 - lam_t) / rho."""
+        m = self.m
+        lam, ind = np.asarray(lam, dtype=float), np.asarray(ind, dtype=float)
+        nu = (ind[:m] - lam[:m]) / self.rho + self.gap
+        tu = (0.5 * (ind[m:2 * m] + ind[2 * m:]) - lam[m:]) / self.rho
+        return max(_size(nu), _size(tu))
 
     def start_branch_at(self, branch, alpha, lam, indicators=None):
         """Make a lazy branch referenced at ``alpha`` start from (alpha, lam) (and the indicators,

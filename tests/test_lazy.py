@@ -298,9 +298,13 @@ def test_a_branch_that_unloads_to_zero_is_saved_exact_at_its_exit(tmp_path):
     from cfcontact.solution_path import SolutionPath
     from cfcontact.ssnm import verify
 
-    for E in (2.1e11, {"body1": 2.1e9, "body2": 2.1e13}):
-        system = cylinder_on_block(size=0.08, size_far=0.5, friction=0.6, E=E,
-                                   dirichlet={"top1": {"x": (0.0, 0.0), "y": (0.0, -0.01)}})
+    models = [cylinder_on_block(size=0.08, size_far=0.5, friction=0.6, E=E,
+                                dirichlet={"top1": {"x": (0.0, 0.0), "y": (0.0, -0.01)}})
+              for E in (2.1e11, {"body1": 2.1e9, "body2": 2.1e13})]
+    # with an initial gap the contact opens first (alpha = 0.2): the last branch is open, lam = 0 at
+    # both of its ends, and is referenced by its relative displacements (residual 0.25 before)
+    models.append(cylinder_on_block(size=0.08, size_far=0.5, friction=0.3, gap0=0.001, half=True))
+    for E, system in zip(("steel", "stiff block", "gap"), models):
         path = cfcontact.trace_path(system, 1.0, 0.0, method="exact")
         assert path.status == "completed" and path.transitions and path.alphas[-1] == 0.0
         path.save(tmp_path / "path")
