@@ -105,9 +105,17 @@ TABLEAU_MIN_NODES = 8
 #: The leaving branch formed afresh must have the rates that the tableau gave it within this share
 #: of their size (else the walk starts over with a solve per pivot).
 TABLEAU_RTOL = 1e-8
-#: Units in the last place of alpha within which two roots count as one transition point (alpha
-#: is rounded: a steep constraint's value there carries its rate times that rounding).
+#: Units in the last place of alpha's scale, max(|alpha|, 1), within which two roots count as one
+#: transition point: alpha is rounded, and so is the load (1 - alpha) f1 + alpha f2 it weighs,
+#: whose rounding is that of its larger weight; a steep constraint's value carries its rate times
+#: that.  (In units of alpha itself, a half punch lifting off at alpha = 0.05, where every contact
+#: force vanishes at once, was crossed as 23 transitions spread over 900 ulps of 0.05.)
 ALPHA_ULPS = 4.0
+
+
+def _alpha_ulp(alpha) -> float:
+    """One unit in the last place of alpha's scale (see ALPHA_ULPS)."""
+    return float(np.spacing(max(abs(float(alpha)), 1.0)))
 #: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
 PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
@@ -214,10 +222,11 @@ class _Unresolved(Exception):
 
 def _alpha_rounding(alpha, dc):
     """What a constraint's value at alpha can be off by because alpha itself is rounded (a
-    transition point is known to a few units in its last place): ALPHA_ULPS ulps times its rate.
+    transition point is known to a few units in the last place of its scale): ALPHA_ULPS of them
+    times its rate.
     Two roots within that of each other cannot be ordered by their values: they are tied, and the
     lexicographic rule orders them."""
-    return ALPHA_ULPS * np.spacing(abs(float(alpha))) * np.abs(dc)
+    return ALPHA_ULPS * _alpha_ulp(alpha) * np.abs(dc)
 
 
 class _Line:
@@ -613,7 +622,7 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     if s * (a_star - bound) >= 0:
         return None, None, None
     # uncertainty of each root: its data's, and the rounding of alpha itself near a_star
-    err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate + ALPHA_ULPS * np.spacing(abs(a_star))
+    err = (ln.tol_v[dec] + abs(a_star - ln.alpha) * ln.tol_s[dec]) / rate + ALPHA_ULPS * _alpha_ulp(a_star)
     if s * (bound - a_star) <= err[j]:
         # the root is the end of the range within its own uncertainty: the path ends there (a
         # load path from or to f = 0 has every constraint of its last branch vanish at alpha = 0,
@@ -820,7 +829,7 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
     absg = np.abs(g[flat])
     tvf = tv[flat]
     tsf = np.broadcast_to(first.ind_ts, (3 * m,))[flat]
-    spacing = ALPHA_ULPS * np.spacing(abs(float(a_star)))
+    spacing = ALPHA_ULPS * _alpha_ulp(a_star)
     sg = _CONS_SIGN[loc, kind].ravel()  # the constraints of the nodes' states, 0: none
     lidx = {int(i): j for j, i in enumerate(nodes)}
     je = lidx.get(int(first.cnode[e]))

@@ -298,3 +298,24 @@ def test_half_model_exact_path_condensed_equals_full():
         assert np.allclose([t.alpha for t in p.transitions], [t.alpha for t in ref.transitions], atol=1e-9)
         for t in p.transitions:
             assert cfcontact.verify(half, p.branch_y(t.to_branch, t.alpha), t.alpha).ok(1e-9)
+
+
+def test_flat_punch_lifting_off_is_one_point_not_a_cascade():
+    """A half flat punch (initial gap 1e-4) pressed 2e-3 and released, F = 3: at alpha = 0.05 every
+    contact force vanishes at once.  Its roots scatter by the rounding of the load (1 - alpha) f1 +
+    alpha f2, a few units in the last place of 1, not of alpha: counted in ulps of 0.05 they were
+    23 separate transitions within 6e-15 (900 of them).  In ulps of alpha's scale they are a few
+    degenerate points (how many, and whether one is a branch point, depends on the rounding: BLAS
+    threads), resolved by the lexicographic rule; the path and its solutions are the same."""
+    from cfcontact.ssnm import verify
+
+    system = cfcontact.rounded_punch(size=0.03, size_far=0.5, half=True, gap0=1e-4, friction=3.0, nu=0.45,
+                                     E={"body1": 7e10, "body2": 7e8})
+    path = cfcontact.trace_path(system, 1.0, 0.0, method="exact")
+    assert path.status == "completed" and {e.kind for e in path.events} <= {"branch_point"}
+    lift = [t for t in path.transitions if abs(t.alpha - 0.05) < 1e-12]
+    assert lift == path.transitions and 1 <= len(lift) <= 8 and path.stats["degenerate_points"] >= 1
+    closed = int((~path.branches[0].sets.nu).sum())
+    assert closed >= 10 and path.branches[-1].sets.nu.all()  # every closed node opens there
+    assert path.max_multiplicity()[0] == 1
+    assert max(verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
