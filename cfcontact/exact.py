@@ -111,11 +111,6 @@ TABLEAU_RTOL = 1e-8
 #: that.  (In units of alpha itself, a half punch lifting off at alpha = 0.05, where every contact
 #: force vanishes at once, was crossed as 23 transitions spread over 900 ulps of 0.05.)
 ALPHA_ULPS = 4.0
-
-
-def _alpha_ulp(alpha) -> float:
-    """One unit in the last place of alpha's scale (see ALPHA_ULPS)."""
-    return float(np.spacing(max(abs(float(alpha)), 1.0)))
 #: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
 PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
@@ -218,6 +213,11 @@ class _Unresolved(Exception):
     def __init__(self, kind, message, data=None):
         super().__init__(message)
         self.kind, self.data = kind, data or {}
+
+
+def _alpha_ulp(alpha) -> float:
+    """One unit in the last place of alpha's scale (see ALPHA_ULPS)."""
+    return float(np.spacing(max(abs(float(alpha)), 1.0)))
 
 
 def _alpha_rounding(alpha, dc):

@@ -263,8 +263,9 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
     First the seed's own choice (the minimizer of (17)): transversal if DirNeu(Z_new) at
     alpha + s h_fail is a fixed point, else a fold if DirNeu(Z_new) at alpha is one.  When
     neither holds (two indicators vanish within one step, or the minimizer is misleading),
-    the next candidates of (17) and pairs of the first ones are tried the same way, keeping
-    only continuations that join the old branch continuously.  Returns
+    the indicators that change sign over the failed step (nearest root first), the next
+    candidates of (17) and pairs of the first ones are tried the same way, keeping only
+    continuations that join the old branch continuously.  Returns
     (kind, node, set, Z_new, s_new, alpha_next, y_next, verified, changes) or None.
     """
     f1, f2 = system.loads_numpy()

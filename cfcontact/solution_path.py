@@ -271,19 +271,20 @@ class SolutionPath:
     def end_branch_at(self, branch, alpha, lam, indicators=None, y=None):
         """Make a branch pass through its exit point at alpha: a lazy branch through (alpha, lam)
         (and the indicators, 3m, when given), a branch with displacements through ``y`` (the
-        whole point, or a function that forms it; lam and indicators are then ignored).  Its values become the chord from its
-        reference point to there.  The exact method passes the next branch's entry point, a fresh
-        solve at the transition, so that the branch's exit point is not extrapolated from its
-        entry along rates that carry its rounding (on a slender body a steep slip rate, 1e13 per
-        unit alpha, put a stored exit 47 N off its own vanishing condition); every linear
-        condition that holds at both ends (the branch's equations) holds along the chord.
+        whole point, or a function that forms it; lam and indicators are then ignored).  Its
+        values become the chord from its reference point to there.  The exact method passes the
+        next branch's entry point, a fresh solve at the transition, and at the end of the range
+        a solve there, so that the branch's exit point is not extrapolated from its entry along
+        rates that carry its rounding (on a slender body a steep slip rate, 1e13 per unit alpha,
+        put a stored exit 47 N off its own vanishing condition); every linear condition that
+        holds at both ends (the branch's equations) holds along the chord.
 
         The branch is then referenced at whichever end has the smaller multipliers (the smaller
-        relative displacements B u, or displacements, where both ends have the same): values read off the chord carry the rounding of its reference point, so a
-        branch that unloads towards zero (its exit at a load f = 0, say) keeps its exit exact
-        instead of a remainder of its entry's size, which against the exit's own size is no
-        solution (1e-16 of the entry's values: equilibrium residuals of 2e-5 to 1 of the point's
-        own size)."""
+        relative displacements B u, or displacements, where both ends have the same): values
+        read off the chord carry the rounding of its reference point, so a branch that unloads
+        towards zero (its exit at a load f = 0, say) keeps its exit exact instead of a remainder
+        of its entry's size, which against the exit's own size is no solution (1e-16 of the
+        entry's values: equilibrium residuals of 2e-5 to 1 of the point's own size)."""
         b = branch.index if isinstance(branch, Branch) else int(branch)
         alpha = float(alpha)
         if b in self._lam:
