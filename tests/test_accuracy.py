@@ -190,3 +190,22 @@ def test_transition_points_are_stored_from_the_side_that_locates_them():
     assert checked > 50
     worst = max(verify(system, y, a, solver=solver).worst() for a, y in path.iter_points())
     assert worst < 1e-10
+
+
+def test_stiff_contrast_residual_is_the_weight_of_rho_not_the_solution():
+    """Body 1 softer than body 2 by r = 1e4 (docs/limits.md): the default rho is the stiff side's,
+    and the residual weighs gaps by it (2e-9 measured).  With rho / r the exact path has the same
+    transitions and its residual, measured with that rho, is of the order of the rounding."""
+    from cfcontact.report import worst_residual
+
+    kw = dict(nx=12, ny=4, E={"body1": 2.1e7, "body2": 2.1e11}, friction=0.6)
+    system = two_blocks(**kw)
+    soft = two_blocks(rho=system.rho / 1e4, **kw)
+    p1 = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    p2 = cfcontact.trace_path(soft, 0.0, 1.0, method="exact")
+    assert p1.status == p2.status == "completed" and len(p1.transitions) >= 10
+    assert [(t.node, t.set, t.kind) for t in p1.transitions] == [(t.node, t.set, t.kind) for t in p2.transitions]
+    np.testing.assert_allclose([t.alpha for t in p1.transitions], [t.alpha for t in p2.transitions], rtol=0,
+                               atol=1e-9)
+    assert worst_residual(soft, p2) < 1e-11
+    assert worst_residual(system, p1) > 100 * worst_residual(soft, p2)  # the same solutions, weighed by rho
