@@ -281,10 +281,10 @@ def _branching(system, solver, y, Z, alpha, s, h_fail, lo, hi):
         # compares indicators of different kinds by size (a multiplier against rho times a slip),
         # and on soft bodies a slipping node's indicator can be thousands of times the closed
         # nodes' lam_n a step before its root, which left it out of the first eight.
-        crossing = _crossing_toggles(system, y, y_old_1, Z)
-        seen = {(singles[0][1], singles[0][2])}
-        extra = [c for c in crossing if (c[1], c[2]) not in seen]
-        singles = singles[:1] + extra + [c for c in singles[1:] if (c[1], c[2]) not in {(e[1], e[2]) for e in extra}]
+        first = (singles[0][1], singles[0][2])
+        extra = [c for c in _crossing_toggles(system, y, y_old_1, Z) if (c[1], c[2]) != first]
+        taken = {(c[1], c[2]) for c in extra}
+        singles = singles[:1] + extra + [c for c in singles[1:] if (c[1], c[2]) not in taken]
     cands = [(c[3], [(c[1], c[2])]) for c in singles]
     top = singles[:4]
     for i in range(len(top)):
