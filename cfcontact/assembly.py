@@ -580,7 +580,8 @@ def assemble_contact_system(
     obstacle : a rigid obstacle as master of body 1 (the model has no body2):
         ``{"kind": "line", "point": (x, y), "normal": (nx, ny)}`` (the half-plane behind the
         line; ``normal`` points out of it, toward the body) or ``{"kind": "circle", "center":
-        (x, y), "radius": R}`` (a rigid disc), or a :class:`cfcontact.pairing.Line` /
+        (x, y), "radius": R}`` (a rigid disc; with ``"inside": True`` a rigid bore, the body in
+        its hole), or a :class:`cfcontact.pairing.Line` /
         :class:`~cfcontact.pairing.Circle`.  Its rows of N and T involve body 1's DOFs only.
 
     Returns a :class:`ContactSystem` whose ``gap`` is the initial gap of each pair and whose

@@ -30,7 +30,7 @@ from cfcontact.errors import InputError
 from cfcontact.interrupts import python_sigint, sigint_deferred  # noqa: F401 (the CLI imports them from here)
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
 from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
-from cfcontact.pairing import OBSTACLE_KEYS, PAIRINGS
+from cfcontact.pairing import OBSTACLE_KEYS, OBSTACLE_OPTIONAL, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
            "build_system", "physics", "path_request", "parse_component", "reference_text", "estimate_size",
@@ -70,7 +70,7 @@ TYPE_NAMES = {"int": "an integer", "float": "a number", "str": "a string", "bool
               "window": "[width, height] in pixels", "friction": "a number >= 0 or a list of them",
               "material": "a number or a table {body = number}", "tag": "a tag (name or number)",
               "obstacle": 'a table {kind = "line", point = [x, y], normal = [nx, ny]} or {kind = "circle", '
-                          'center = [x, y], radius = R}',
+                          'center = [x, y], radius = R[, inside = true]}',
               "dirichlet": "a table {tag = {x = value, y = value}}"}
 
 _KIND = Key("str", None, '"two_blocks"', " | ".join(f'"{k}"' for k in GEOMETRY_KINDS))
@@ -292,11 +292,12 @@ def _subtable(where):
 
 
 _OBSTACLE_DOCS = {"point": "a point of the line", "normal": "its normal, pointing out of the obstacle toward the body",
-                  "center": "the centre of the rigid disc", "radius": "its radius > 0"}
+                  "center": "the centre of the rigid disc", "radius": "its radius > 0",
+                  "inside": "true: a rigid bore, the body in its hole (default false: a disc)"}
 
 
 def _obstacle(value, where):
-    """{kind = "line", point, normal} / {kind = "circle", center, radius}, checked key by key."""
+    """{kind = "line", point, normal} / {kind = "circle", center, radius[, inside]}, checked key by key."""
     where = _subtable(where)
     if not isinstance(value, dict):
         raise CaseError(f"{where}: expected {TYPE_NAMES['obstacle']}, got {_tname(value)} {value!r}")
@@ -304,10 +305,11 @@ def _obstacle(value, where):
     if kind not in OBSTACLE_KEYS:
         raise CaseError(f"{where} kind: expected \"line\" (with point, normal) or \"circle\" (with center, "
                         f"radius), got {kind!r}")
-    keys = OBSTACLE_KEYS[kind]
-    unknown = sorted(set(value) - set(keys) - {"kind"})
+    keys, optional = OBSTACLE_KEYS[kind], OBSTACLE_OPTIONAL[kind]
+    unknown = sorted(set(value) - set(keys) - set(optional) - {"kind"})
     if unknown:
-        raise CaseError(f"unknown key {unknown[0]!r} in {where} (kind = {kind!r}); valid keys: kind, {', '.join(keys)}")
+        raise CaseError(f"unknown key {unknown[0]!r} in {where} (kind = {kind!r}); valid keys: kind, "
+                        f"{', '.join(keys + optional)}")
     out = {"kind": kind}
     for key in keys:
         if key not in value:
@@ -319,6 +321,8 @@ def _obstacle(value, where):
                 raise CaseError(f"{where} radius: must be > 0, got {value[key]!r}")
         else:
             out[key] = _vec2(value[key], f"{where} {key}")
+    if "inside" in optional and "inside" in value:
+        out["inside"] = _check_value("bool", value["inside"], f"{where} inside")
     if kind == "line" and out["normal"] == [0.0, 0.0]:
         raise CaseError(f"{where} normal: must not be zero (it points out of the obstacle toward the body)")
     return out

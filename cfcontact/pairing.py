@@ -267,10 +267,13 @@ class Line(Obstacle):
 
 @dataclass(frozen=True)
 class Circle(Obstacle):
-    """A rigid disc of radius ``radius`` centred at ``center`` (the body lies outside it)."""
+    """A rigid disc of radius ``radius`` centred at ``center``, the body outside it; with
+    ``inside=True`` a rigid bore instead (the solid is outside the circle, the body lies in its
+    hole: a shaft or a pin in a rigid bearing)."""
 
     center: tuple
     radius: float
+    inside: bool = False
     kind = "circle"
 
     def __post_init__(self):
@@ -281,23 +284,36 @@ class Circle(Obstacle):
             r = float("nan")
         if isinstance(self.radius, bool) or not (math.isfinite(r) and r > 0):
             raise InputError(f"obstacle circle 'radius' must be a positive number, got {self.radius!r}")
+        if not isinstance(self.inside, (bool, np.bool_)):
+            raise InputError(f"obstacle circle 'inside' must be true or false, got {self.inside!r}")
         object.__setattr__(self, "center", tuple(c.tolist()))
         object.__setattr__(self, "radius", r)
+        object.__setattr__(self, "inside", bool(self.inside))
 
     def ray(self, x, d):
         r = x - np.asarray(self.center)
         rd = np.sum(r * d, axis=1)
         disc = rd * rd - np.sum(r * r, axis=1) + self.radius ** 2
         root = np.sqrt(np.maximum(disc, 0.0))
-        t1, t2 = -rd - root, -rd + root
+        t1, t2 = -rd - root, -rd + root  # the ray's crossings with the circle, t1 <= t2
+        if self.inside:
+            # the solid lies beyond the circle: the ray leaves the hole at t2 (t2 < 0: x is in the
+            # solid, an initial interference); t1 > 0: x is in the solid and the ray enters the hole
+            status = np.where(disc < 0, 1, np.where(t1 > 0, 2, 0))
+            return np.where(status == 0, t2, np.inf), status
         status = np.where(disc < 0, 1, np.where(t2 < 0, 2, 0))
         return np.where(status == 0, t1, np.inf), status
 
     def to_dict(self):
-        return {"kind": "circle", "center": list(self.center), "radius": self.radius}
+        out = {"kind": "circle", "center": list(self.center), "radius": self.radius}
+        if self.inside:  # (left out otherwise: the saved form of a disc is unchanged)
+            out["inside"] = True
+        return out
 
 
 OBSTACLE_KEYS = {"line": ("point", "normal"), "circle": ("center", "radius")}
+#: keys an obstacle may leave out (their defaults: a disc with the body outside it)
+OBSTACLE_OPTIONAL = {"line": (), "circle": ("inside",)}
 
 
 def make_obstacle(spec) -> Optional[Obstacle]:
@@ -311,14 +327,15 @@ def make_obstacle(spec) -> Optional[Obstacle]:
     kind = spec.get("kind")
     if kind not in OBSTACLE_KEYS:
         raise InputError(f"obstacle 'kind' must be one of {', '.join(map(repr, OBSTACLE_KEYS))}, got {kind!r}")
-    keys = OBSTACLE_KEYS[kind]
-    unknown = sorted(set(map(str, spec)) - set(keys) - {"kind"})
+    keys, optional = OBSTACLE_KEYS[kind], OBSTACLE_OPTIONAL[kind]
+    unknown = sorted(set(map(str, spec)) - set(keys) - set(optional) - {"kind"})
     missing = [k for k in keys if k not in spec]
     if unknown or missing:
-        raise InputError(f"obstacle of kind {kind!r} takes the keys {', '.join(keys)}"
+        raise InputError(f"obstacle of kind {kind!r} takes the keys {', '.join(keys + optional)}"
+                         + (f" ({', '.join(optional)} optional)" if optional else "")
                          + (f"; unknown: {', '.join(unknown)}" if unknown else "")
                          + (f"; missing: {', '.join(missing)}" if missing else ""))
-    return (Line if kind == "line" else Circle)(*(spec[k] for k in keys))
+    return (Line if kind == "line" else Circle)(*(spec[k] for k in keys), **{k: spec[k] for k in optional if k in spec})
 
 
 # ============================================================== pairing
@@ -522,7 +539,9 @@ def obstacle_pairing(points, slave_facets, slave_centroids, obstacle: Obstacle, 
     if np.all(t[found] < 0):
         raise GeometryError(f"the obstacle {obstacle.to_dict()} does not face {slave_name}: every {slave_name} node "
                             f"lies inside it (gaps from {t[found].min():.6g} to {t[found].max():.6g}); is its normal "
-                            "reversed or its position wrong?")
+                            "reversed or its position wrong?"
+                            + (" (a body in a circular hole: inside = true)"
+                               if isinstance(obstacle, Circle) and not obstacle.inside else ""))
     reason = np.where(far, "distance", np.where(status == 2, "back", "miss"))
     m = int(found.sum())
     trib = tributary_lengths(pts, slave_facets, snodes)

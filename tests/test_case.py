@@ -229,7 +229,9 @@ def test_bad_contact_and_dirichlet_keys_name_the_key(text, words):
      ["[contact.obstacle] radius is missing"]),
     ('[geometry]\nkind = "block_on_foundation"\n[contact]\nslave = "contact1"\npairing = "segment"\n'
      '[contact.obstacle]\nkind = "circle"\ncenter = [0, -1]\nradius = 0.5\nscale = 2\n',
-     ["unknown key 'scale' in [contact.obstacle]", "center, radius"]),
+     ["unknown key 'scale' in [contact.obstacle]", "center, radius, inside"]),
+    ('[geometry]\nkind = "block_on_foundation"\n[contact.obstacle]\nkind = "circle"\ncenter = [0, -1]\nradius = 0.5\n'
+     'inside = "yes"\n', ["[contact.obstacle] inside", "'yes'"]),
     ('[geometry]\nkind = "block_on_foundation"\nnx2 = 3\n', ["[geometry] nx2", "no body 2"]),
     ('[geometry]\nkind = "cylinder"\nhalf = true\n[loads.dirichlet]\ntop1 = {y = [0.0, -0.01]}\nsym1 = {x = 0.0}\n',
      ["[loads.dirichlet]", "half model", "sym2 = {x = 0.0}"]),

@@ -164,6 +164,66 @@ def test_obstacle_specification_errors(obstacle, words):
         cfcontact.assemble_contact_system("/nonexistent.msh", obstacle=obstacle)
 
 
+def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3):
+    """A hub (annulus of radii 0.3 and 1, body 1 alone, its outer circle contact1 with ``nodes``
+    equally spaced nodes) in a rigid bore of radius 1 + clearance centred on it; its inner circle
+    is moved by alpha U (prescribed), nothing else holds it."""
+    from cfcontact import compat
+
+    with compat.gmsh_model("hub") as model:
+        occ = model.occ
+        hub, _ = occ.cut([(2, occ.addDisk(0, 0, 0, 1, 1))], [(2, occ.addDisk(0, 0, 0, 0.3, 0.3))])
+        occ.synchronize()
+        curves = [c for _, c in model.getBoundary(hub, oriented=False)]
+        outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5]
+        inner = [c for c in curves if c not in outer]
+        for dim, tags, num, name in ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1")):
+            model.addPhysicalGroup(dim, tags, num)
+            model.setPhysicalName(dim, num, name)
+        for c in outer:
+            model.mesh.setTransfiniteCurve(c, nodes + 1)  # (a closed curve: its first node is its last)
+        import gmsh
+
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
+        model.mesh.generate(2)
+        return cfcontact.assemble_contact_system(
+            model, clamp=(), friction=friction, obstacle={"kind": "circle", "center": (0.0, 0.0),
+                                                           "radius": 1.0 + clearance, "inside": inside},
+            dirichlet={"inner1": {"x": (0.0, U[0]), "y": (0.0, U[1])}})
+
+
+def test_shaft_in_a_rigid_bore():
+    """``inside=True``: the body lies in the circle's hole.  Gaps are the radial clearance; before
+    any contact the hub moves rigidly (u = alpha U), so the first node closes where its clearance
+    over its normal displacement, c_i / (n_i . U), is least (the analytic first transition); the
+    whole path verifies, and the disc reading of the same circle is refused with a hint."""
+    c, U = 1e-3, np.array([1e-3, -3e-3])
+    system = _hub_in_bore(c, U)
+    x = system.geometry.contact_points[:, :2]
+    r = np.hypot(*x.T)
+    assert system.m == 48 and np.allclose(r, 1.0, atol=1e-12)
+    assert np.allclose(system.gap, 1.0 + c - r, rtol=1e-9, atol=1e-15)
+    assert np.allclose(system.geometry.normals[:, :2], x / r[:, None], atol=1e-12)  # outward, radial
+    assert system.info["contact"]["obstacle"] == {"kind": "circle", "center": [0.0, 0.0], "radius": 1.0 + c,
+                                                  "inside": True}
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed" and len(path.transitions) > 5
+    rate = (x / r[:, None]) @ U
+    closing = np.where(rate > 0, system.gap / np.where(rate > 0, rate, 1.0), np.inf)
+    first = path.transitions[0]
+    assert first.alpha == pytest.approx(closing.min(), rel=1e-9)
+    assert first.node == int(np.argmin(closing)) and first.set == "nu"
+    (sol,) = path.solutions_at(0.5 * first.alpha)
+    u = sol.u.reshape(-1, 2)  # free DOFs in (node, component) order: the contact nodes' are free
+    assert np.allclose(u, 0.5 * first.alpha * U, rtol=1e-9, atol=1e-15) and not sol.lam_n.any()
+    worst = max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points())
+    assert worst < 1e-10
+    with pytest.raises(GeometryError, match="inside = true"):
+        _hub_in_bore(c, U, nodes=12, inside=False)
+    with pytest.raises(InputError, match="'inside' must be true or false"):
+        pairing.make_obstacle({"kind": "circle", "center": (0, 0), "radius": 1.0, "inside": "yes"})
+
+
 def test_obstacle_needs_a_single_body():
     with pytest.raises(GeometryError, match="single body"):
         cfcontact.two_blocks(nx=3, ny=1, obstacle={"kind": "line", "point": (0, -1), "normal": (0, 1)})
