@@ -560,7 +560,7 @@ def assemble_contact_system(
     comm : mpi4py communicator (default COMM_WORLD)
     match_tol : contact nodes pair up when closer than ``match_tol * h`` (h: the
         shortest contact1 facet); node-to-segment pairing snaps a slave node that close to a
-        master node onto it (node to node, no gap)
+        master node onto it (node to node, no gap), and a gap to a rigid obstacle that small is 0
     info : extra entries for ``ContactSystem.info``
     dirichlet : ``{boundary piece: {"x": value, "y": value}}`` prescribed displacement
         components (either or both): a number (the same along the path) or a pair
@@ -796,7 +796,7 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
     h = float(length1.min())
     tol = float(match_tol) * h
     if obstacle is not None:
-        return pairing_mod.obstacle_pairing(pts, f1, cent1, obstacle, search_distance=search_distance)
+        return pairing_mod.obstacle_pairing(pts, f1, cent1, obstacle, search_distance=search_distance, snap=tol)
     nodes1, normal1 = pairing_mod.node_normals(pts, f1, cent1, "contact1")
     trib1 = pairing_mod.tributary_lengths(pts, f1, nodes1)
     k = len(nodes1)

@@ -123,6 +123,10 @@ ALTERNATIVES_MAX_NODES = 6
 MAX_CANDIDATES = 4 ** ENUMERATION_CHECK_NODES
 #: Iterations of SSNM (in the multipliers, from 0) before the exact method starts by its homotopy.
 START_SSNM_ITERATIONS = 25
+#: The start is an apex of the solution set when the contact data at alpha_start vanish to within
+#: this many units of their larger end's rounding (no load that moves a contact node, no gap):
+#: every solution there is zero and the problem is positively homogeneous from it.
+APEX_ULPS = DATA_ULPS
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -1619,7 +1623,7 @@ def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0) -> 
 def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
     """(line, orientation, how) of the start: the branch of the start solution's sets leaving alpha
     in direction s (see :func:`_leave_start`); how = "start_sets", "ssnm", "frictionless",
-    "homotopy" or "enumeration"."""
+    "homotopy", "enumeration" or "apex" (:func:`_apex_start`)."""
     system = ctx.system
     if start_sets is not None:
         if not isinstance(start_sets, InactiveSets) or start_sets.m != system.m:
@@ -1631,12 +1635,62 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
                              f"DirNeu(start_sets, f(alpha_start)) is not a solution")
         how = "start_sets"
     else:
+        if y0 is None and _is_apex(ctx, alpha):
+            ln = _apex_start(ctx, path, alpha, s, monitor)
+            if ln is not None:
+                return ln, s, "apex"
         start_sets, how = _ssnm_start(ctx, alpha, y0), "ssnm"
         if start_sets is None:
             start_sets, how, _ = reach_start(system, alpha, path, ctx.opts, monitor, ctx)
         codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
+
+
+def _is_apex(ctx: _Context, alpha) -> bool:
+    """Do the contact data vanish at alpha (APEX_ULPS)?  Condensed backend: w(alpha) = B K^-1 f(alpha)
+    - (g; 0); full backend: f(alpha) and the gap."""
+    eps = np.finfo(float).eps
+    if ctx.condensed:
+        w1, w2 = ctx.data.w1, ctx.data.w2
+    else:
+        if np.any(np.asarray(ctx.system.gap) != 0.0):
+            return False
+        w1, w2 = ctx.f1, ctx.f2
+    scale = max(np.abs(w1).max(initial=0.0), np.abs(w2).max(initial=0.0))
+    w = (1.0 - alpha) * w1 + alpha * w2
+    return scale > 0.0 and float(np.abs(w).max(initial=0.0)) <= APEX_ULPS * eps * scale
+
+
+def _apex_start(ctx: _Context, path, alpha, s, monitor=None) -> Optional[_Line]:
+    """The branch leaving an apex (see APEX_ULPS) in direction s, or None when it cannot be had.
+
+    At an apex every multiplier and every indicator vanishes, so the lexicographic rule would have
+    to order all 3m constraints at once (at large F it can return to a branch it crossed: a dead
+    end).  It needs no rule: the data are (alpha - alpha_start) (w2 - w1), so a solution's sets at
+    alpha_start + s (found by SSNM, or by the exact method's homotopies) are those of a ray
+    lam(alpha) = |alpha - alpha_start| lam(alpha_start + s) that solves the problem for every
+    alpha beyond alpha_start in direction s.  Its branch is checked: every constraint zero at
+    alpha_start and none decreasing.  Where several solutions exist at alpha_start + s, each is such
+    a ray from the apex; the path follows the one found (an event says so)."""
+    probe = alpha + s
+    sets = _ssnm_start(ctx, probe, None)
+    how = "ssnm"
+    if sets is None:
+        try:
+            sets, how, _ = reach_start(ctx.system, probe, path, ctx.opts, monitor, ctx)
+        except ConvergenceError:
+            return None
+    ln = ctx.line(_canon(ctx.system, sets), alpha)
+    if np.any(np.abs(ln.c) > ln.tol_v) or np.any(s * ln.dc < -ln.tol_s):
+        return None
+    path.events.append(PathEvent(
+        "apex_start", alpha, f"the data vanish at alpha_start = {alpha:g} (no load on the contact, no gap): the "
+        f"solution there is zero and the path leaves it on the ray of the solution found at alpha = {probe:g} "
+        f"(by {how}); other solutions there, if any, are other rays from the same point", None,
+        {"probe_alpha": probe, "found_by": how}))
+    log.info("alpha_start=%g is an apex (zero data); leaving it on the ray of the solution at alpha=%g", alpha, probe)
+    return ln
 
 
 def reach_start(system, alpha, path, options: Optional[PathOptions] = None, monitor=None, ctx=None) -> tuple:
@@ -1760,7 +1814,8 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     :func:`_backtrack`; ``backtrack`` events, ``path.stats["backtracks"]``).  ``path.stats`` adds
     ``start`` (how the start was found: "ssnm"; where SSNM does not converge, the exact method's
     homotopy from the frictionless solution, "frictionless", or from the all-open state,
-    "homotopy"; "enumeration", "start_sets"), ``degenerate_points``, ``pivots``,
+    "homotopy"; "enumeration", "start_sets"; "apex" where the contact data vanish at alpha_start,
+    see :func:`_apex_start`), ``degenerate_points``, ``pivots``,
     ``max_vanishing``, ``branch_points``, ``homotopy_transitions`` (of the start's homotopies),
     ``point_updates`` (intermediate branches of degenerate points solved by the point's rank-2
     updates, :class:`~cfcontact.condensed.PointModel`) and ``tableau_updates`` (pivots made on a

@@ -312,6 +312,9 @@ class Circle(Obstacle):
 
 
 OBSTACLE_KEYS = {"line": ("point", "normal"), "circle": ("center", "radius")}
+#: An obstacle that every contact node penetrates deeper than this share of the contact boundary's
+#: extent is taken for a misplaced one (a reversed normal, a wrong centre) and refused.
+INTERFERENCE_LIMIT = 0.01
 #: keys an obstacle may leave out (their defaults: a disc with the body outside it)
 OBSTACLE_OPTIONAL = {"line": (), "circle": ("inside",)}
 
@@ -519,15 +522,18 @@ def node_to_segment(points, slave_facets, slave_centroids, master_facets, master
 
 
 def obstacle_pairing(points, slave_facets, slave_centroids, obstacle: Obstacle, *, search_distance=None,
-                     slave_name="contact1") -> Pairing:
+                     slave_name="contact1", snap=0.0) -> Pairing:
     """Pairing of a single body's contact boundary (body 1) with a rigid obstacle: each slave node's
-    outer normal is cast onto the obstacle; the distance along it is the gap.  GeometryError when
-    no node meets the obstacle (it does not face the body)."""
+    outer normal is cast onto the obstacle; the distance along it is the gap, exactly 0 within
+    ``snap`` (a node meshed on the obstacle's surface: gmsh places it there to rounding, and a gap
+    of -1e-16 would make a touching interface an interference).  GeometryError when no node meets
+    the obstacle (it does not face the body)."""
     pts = np.asarray(points, dtype=float)
     search = check_search_distance(search_distance)
     snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name)
     xs = pts[snodes]
     t, status = obstacle.ray(xs, snormal)
+    t = np.where((status == 0) & (np.abs(t) <= snap), 0.0, t)
     far = (status == 0) & (search is not None) & (np.abs(t) > (search if search is not None else np.inf))
     found = (status == 0) & ~far
     if not found.any():
@@ -536,7 +542,9 @@ def obstacle_pairing(points, slave_facets, slave_centroids, obstacle: Obstacle, 
         raise GeometryError(f"the obstacle {obstacle.to_dict()} does not face {slave_name}: {why} "
                             f"({slave_name} spans x in [{xs[:, 0].min():.6g}, {xs[:, 0].max():.6g}], "
                             f"y in [{xs[:, 1].min():.6g}, {xs[:, 1].max():.6g}])")
-    if np.all(t[found] < 0):
+    extent = float(np.ptp(xs, axis=0).max(initial=0.0))
+    if np.all(t[found] < 0) and -t[found].min() > INTERFERENCE_LIMIT * extent:
+        # (a shallower interference at every node is a press fit: a shaft in a smaller bore)
         raise GeometryError(f"the obstacle {obstacle.to_dict()} does not face {slave_name}: every {slave_name} node "
                             f"lies inside it (gaps from {t[found].min():.6g} to {t[found].max():.6g}); is its normal "
                             "reversed or its position wrong?"

@@ -224,6 +224,41 @@ def test_shaft_in_a_rigid_bore():
         pairing.make_obstacle({"kind": "circle", "center": (0, 0), "radius": 1.0, "inside": "yes"})
 
 
+def test_a_bore_without_clearance_pressed_from_zero_load_is_one_ray():
+    """No clearance (the hub meshed on the bore's circle: gaps within rounding are exactly 0) and the
+    hub moved from zero: the data vanish at alpha = 0, every multiplier and indicator too.  At F = 30
+    the lexicographic rule cannot leave that point (it returned to a branch it had crossed: "stuck"
+    with no solution beyond alpha = 0); the path leaves it on the ray of a solution at alpha = 1
+    ("apex" start), and the problem being positively homogeneous, that ray is the whole path."""
+    U = np.array([-2.8e-3, 3.9e-4])
+    system = _hub_in_bore(0.0, U, nodes=40, friction=30.0)
+    assert not system.gap.any()  # (gmsh: radii of 1 +- 1e-16, snapped)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed" and path.stats["start"] == "apex" and not path.transitions
+    assert [e.kind for e in path.events] == ["apex_start"]
+    (half,), (full,) = path.solutions_at(0.5), path.solutions_at(1.0)
+    assert np.allclose(half.y, 0.5 * full.y, rtol=1e-12, atol=1e-12 * np.abs(full.y).max())
+    assert full.lam_n.max() > 0 and (full.lam_n > 0).sum() < system.m  # pressed on one side only
+    assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert seed.status == "completed" and not seed.transitions
+
+
+def test_a_press_fit_in_a_bore_is_an_interference_not_a_misplaced_obstacle():
+    """A hub of radius 1 in a bore of radius 0.999: every node starts 1e-3 inside the solid (a press
+    fit), which is accepted (an obstacle every node penetrates by more than 1 % of the contact's
+    extent is refused as misplaced); both methods trace the same set changes."""
+    system = _hub_in_bore(-1e-3, np.array([1e-3, -3e-3]), nodes=40)
+    assert np.allclose(system.gap, -1e-3, rtol=1e-9)
+    exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert exact.status == seed.status == "completed" and len(exact.transitions) > 5
+    assert [(t.node, t.set, t.kind) for t in exact.transitions] == [(t.node, t.set, t.kind) for t in seed.transitions]
+    assert max(cfcontact.verify(system, y, a).worst() for a, y in exact.iter_points()) < 1e-10
+    with pytest.raises(GeometryError, match="does not face contact1"):
+        _hub_in_bore(-0.05, np.array([1e-3, -3e-3]), nodes=12)
+
+
 def test_obstacle_needs_a_single_body():
     with pytest.raises(GeometryError, match="single body"):
         cfcontact.two_blocks(nx=3, ny=1, obstacle={"kind": "line", "point": (0, -1), "normal": (0, 1)})
