@@ -49,7 +49,8 @@ class SeedStepper(Stepper):
             self._start_clock()
             self.path = SolutionPath.for_system(system, "seed", span.start, span.end, options.to_dict())
             start = self._start_point(span.start, y0, monitor)
-            start = oriented_start(system, start, span, options, self.solver)  # a degenerate start: its sets
+            start = oriented_start(system, start, span, options, self.solver,  # a degenerate start: its sets
+                                   reach=lambda a: self._sets_at(a, monitor))
             self.Z, self.s, self.alpha, self.y = start.sets, span.direction, span.start, start.y
             self.branch = self.path.add_branch(self.Z, self.s, *branch_endpoints(system, self.solver, self.Z),
                                                alpha_enter=self.alpha)
@@ -97,6 +98,16 @@ class SeedStepper(Stepper):
                                      f"was reached by the exact method ({how}, {n} transition(s))", None,
                                      {"how": how, "transitions": n}))
         return Solution.from_y(system, y, alpha, sets)
+
+    def _sets_at(self, alpha, monitor=None) -> InactiveSets:
+        """Sets of a solution at alpha: :func:`start_point` (SSNM with its restarts), else the exact
+        method's :func:`~cfcontact.exact.reach_start`; ConvergenceError when neither finds one."""
+        try:
+            return start_point(self.system, alpha, None, self.opts, self.solver).sets
+        except ConvergenceError:
+            from cfcontact.exact import reach_start
+
+            return reach_start(self.system, alpha, self.path, self.opts, monitor)[0]
 
     # ------------------------------------------------------------- stepper interface
     @property

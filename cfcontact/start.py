@@ -97,7 +97,7 @@ def consistent_up_to_ties(system, y, sets, rtol=TIE_RTOL) -> bool:
     return InactiveSets(a < 0, bp > 0, bm < 0).equivalent(sets, system.friction)
 
 
-def oriented_start(system, start: Solution, span: AlphaSpan, opts: PathOptions, solver) -> Solution:
+def oriented_start(system, start: Solution, span: AlphaSpan, opts: PathOptions, solver, reach=None) -> Solution:
     """The start point with the inactive sets of the branch that leaves it towards ``span.end``.
 
     SSNM's sets at the start are Z(y_start).  Where an indicator vanishes at y_start (a
@@ -111,7 +111,10 @@ def oriented_start(system, start: Solution, span: AlphaSpan, opts: PathOptions, 
     (:func:`consistent_up_to_ties`) is taken: its branch is affine, so it is consistent on the
     whole step [alpha_start, alpha_start + s h].  A non-degenerate start is returned unchanged
     (its sets are consistent on a neighbourhood), as is a degenerate one where no candidate
-    qualifies (the stepper's branching algorithm then takes over)."""
+    qualifies (the stepper's branching algorithm then takes over).  ``reach``: a callable giving
+    the sets of a solution at an alpha by other means, asked once where SSNM from y_start does not
+    converge (at y = 0 of a zero load with every gap zero -- an apex, where the problem is
+    positively homogeneous -- SSNM fails alike at every step size)."""
     if not any(t.any() for t in indicator_ties(system, start.y)):
         return start
     s, alpha0 = span.direction, span.start
@@ -125,7 +128,12 @@ def oriented_start(system, start: Solution, span: AlphaSpan, opts: PathOptions, 
         try:
             candidates.append(ssnm(system, a1, y0=y0, tol=opts.tol, max_iter=opts.max_iter, solver=solver).sets)
         except ConvergenceError:
-            pass
+            if reach is not None:
+                try:
+                    candidates.append(reach(a1))
+                except ConvergenceError:
+                    pass
+                reach = None  # (once)
         for Z in candidates:
             y1 = solver.solve(Z, load(a1))
             if not is_fixed_point(system, y1, Z):

@@ -164,7 +164,7 @@ def test_obstacle_specification_errors(obstacle, words):
         cfcontact.assemble_contact_system("/nonexistent.msh", obstacle=obstacle)
 
 
-def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3):
+def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3, nu=0.3):
     """A hub (annulus of radii 0.3 and 1, body 1 alone, its outer circle contact1 with ``nodes``
     equally spaced nodes) in a rigid bore of radius 1 + clearance centred on it; its inner circle
     is moved by alpha U (prescribed), nothing else holds it."""
@@ -187,7 +187,7 @@ def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3):
         gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
         model.mesh.generate(2)
         return cfcontact.assemble_contact_system(
-            model, clamp=(), friction=friction, obstacle={"kind": "circle", "center": (0.0, 0.0),
+            model, clamp=(), friction=friction, nu=nu, obstacle={"kind": "circle", "center": (0.0, 0.0),
                                                            "radius": 1.0 + clearance, "inside": inside},
             dirichlet={"inner1": {"x": (0.0, U[0]), "y": (0.0, U[1])}})
 
@@ -242,6 +242,16 @@ def test_a_bore_without_clearance_pressed_from_zero_load_is_one_ray():
     assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
     seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
     assert seed.status == "completed" and not seed.transitions
+    # the seed method there: SSNM from y = 0 cycles at every step size of its degenerate start (39
+    # nodes, nu = 0.45), so the start's sets came from nowhere and the path cycled in folds at
+    # alpha = 0; the sets of a solution reached otherwise (SSNM's restarts, the exact method's
+    # homotopies) give the ray
+    system = _hub_in_bore(0.0, np.array([4.35e-4, 7.86e-4]), nodes=39, friction=1.0, nu=0.45)
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert seed.status == "completed" and not seed.transitions and not seed.events
+    (half,), (full,) = seed.solutions_at(0.5), seed.solutions_at(1.0)
+    assert np.allclose(half.y, 0.5 * full.y, rtol=1e-10, atol=1e-10 * np.abs(full.y).max())
+    assert full.lam_n.max() > 0 and cfcontact.verify(system, full.y, 1.0).worst() < 1e-12
 
 
 def test_a_press_fit_in_a_bore_is_an_interference_not_a_misplaced_obstacle():
