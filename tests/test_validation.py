@@ -1,6 +1,7 @@
-"""Validation against results nobody here derived (issue #12, item 6): Hertz and Cattaneo-Mindlin,
-coarse versions of demos/hertz.py and demos/mindlin.py, with the tolerances a coarse mesh meets
-honestly (the documented mesh sequence and its errors are in docs/validation.md)."""
+"""Validation against results nobody here derived (issue #12, item 6): Hertz, Cattaneo-Mindlin and
+Lame, coarse versions of demos/hertz.py, demos/mindlin.py and demos/lame.py, with the tolerances a
+coarse mesh meets honestly (the documented mesh sequences and their errors are in
+docs/validation.md)."""
 
 import json
 import os
@@ -14,6 +15,7 @@ import cfcontact
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "demos"))
 import hertz  # noqa: E402
+import lame  # noqa: E402
 import mindlin  # noqa: E402
 
 COARSE = 0.02  # a / h ~ 5
@@ -57,6 +59,29 @@ def test_hertz_demo_writes_json_and_plot(tmp_path):
     assert set(data["targets"]) == {"F=0:a_over_h", "F=0:p0", "F=0:l2"}
     assert code == (0 if all(t["met"] for t in data["targets"].values()) else 1)
     assert row["h"] == 0.04 and len(row["profile"]["x"]) == row["m"]
+
+
+def test_lame_press_fit_in_a_rigid_bore(tmp_path):
+    """demos/lame.py on its two coarser meshes (n = 64, 128 nodes on the hub's circle): every node
+    closed, one branch, the mean pressure within 1e-3 of Lame's on the finer one (measured 3.7e-4)
+    and converging with order >= 1.5 (1.75), plane strain and plane stress."""
+    code = lame.main(["--nodes", "64", "128", "-o", str(tmp_path)])
+    data = json.loads((tmp_path / "lame.json").read_text())
+    assert code == 0 and set(data) == {"strain", "stress"}
+    # Lame's pressure from the boundary-value problem itself: u = A r + B / r, u(a) = 0, u(b) = -delta,
+    # sigma_r = lam (eps_r + eps_t) + 2 mu eps_r (plane stress: lam* = 2 lam mu / (lam + 2 mu))
+    a, b, E, nu = lame.INNER, lame.OUTER, lame.E, lame.NU
+    A, B = np.linalg.solve([[a, 1 / a], [b, 1 / b]], [0.0, -lame.DELTA])
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    for plane, lm in (("strain", lam), ("stress", 2 * lam * mu / (lam + 2 * mu))):
+        eps_r, eps_t = A - B / b ** 2, A + B / b ** 2
+        assert data[plane]["lame_pressure"] == pytest.approx(-(lm * (eps_r + eps_t) + 2 * mu * eps_r), rel=1e-12)
+    for plane, d in data.items():
+        for r in d["meshes"]:
+            assert r["status"] == "completed" and r["transitions"] == 0 and r["closed"] == r["m"] == r["nodes"]
+            assert r["residual"] < 1e-12
+        fine = d["meshes"][-1]
+        assert abs(fine["error"]) <= 1e-3 and fine["order"] >= 1.5 and fine["spread"] < 5e-3
 
 
 @pytest.fixture(scope="module")
