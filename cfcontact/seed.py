@@ -191,8 +191,10 @@ class SeedStepper(Stepper):
                                          branch.index))
             self._finish("stuck")
             return None
-        tkind, node, kind, Z_new, s_new, a_next, y_next, verified, changes = choice
         a1 = alpha + s * h_fail
+        if not choice[7]:
+            choice = self._through_apex(alpha, a1) or choice
+        tkind, node, kind, Z_new, s_new, a_next, y_next, verified, changes = choice
         if not verified:
             path.events.append(PathEvent(
                 "unverified_transition", alpha,
@@ -222,6 +224,59 @@ class SeedStepper(Stepper):
         idx = path.add_point(self.branch, a_next, y_next)
         self.done = tkind == "transversal" and (a_next >= hi or a_next <= lo)
         return idx
+
+
+    def _through_apex(self, alpha, a1):
+        """A transversal continuation through an apex between alpha and a1, or None.
+
+        Where the load vanishes between the two (f(alpha*) = 0 to APEX_ULPS of rounding: a load
+        reversed through zero) and no gap is open, every multiplier and indicator vanishes at
+        alpha*, and no single or double set change continues the path.  Beyond alpha* the problem is
+        positively homogeneous: the sets of a solution at a1 (SSNM with its restarts, else the
+        exact method's homotopies) are those of the ray that leaves the apex."""
+        from cfcontact.exact import APEX_ULPS
+
+        system, solver = self.system, self.solver
+        if np.any(np.asarray(system.gap) != 0.0):
+            return None
+        f1, df = self.f1, self.f2 - self.f1
+        dd = float(df @ df)
+        if dd == 0.0:
+            return None
+        a_star = -float(f1 @ df) / dd
+        scale = max(np.abs(self.f1).max(initial=0.0), np.abs(self.f2).max(initial=0.0))
+        if not (min(alpha, a1) <= a_star <= max(alpha, a1)) or \
+                np.abs(f1 + a_star * df).max(initial=0.0) > APEX_ULPS * np.finfo(float).eps * scale:
+            return None
+        try:
+            Z1 = self._sets_at(a1)
+        except ConvergenceError:
+            return None
+        y1 = solver.solve(Z1, (1.0 - a1) * self.f1 + a1 * self.f2)
+        if not _fixed_point(system, y1, Z1):
+            return None
+        changes = _set_changes(system, self.Z, Z1)
+        if not changes:
+            return None
+        log.info("alpha=%.8g: the load vanishes at alpha=%.12g (an apex); %d node(s) change state there", alpha,
+                 a_star, len({c["node"] for c in changes}))
+        return ("transversal", changes[0]["node"], changes[0]["set"], Z1, self.s, a1, y1, True, changes)
+
+
+def _set_changes(system, Z0, Z1) -> list:
+    """[{"node", "set"}] of the nodes whose state differs between Z0 and Z1 (canonical states),
+    each named by the first set that differs (nu, tp, tm)."""
+    from cfcontact.exact import canonical_codes
+
+    c0 = canonical_codes(Z0, system.friction, system.no_tangent)
+    c1 = canonical_codes(Z1, system.friction, system.no_tangent)
+    out = []
+    for i in np.flatnonzero(c0 != c1):
+        i = int(i)
+        kind = next((k for k, a, b in (("nu", Z0.nu, Z1.nu), ("tp", Z0.tp, Z1.tp), ("tm", Z0.tm, Z1.tm)) if a[i] != b[i]),
+                    "nu")
+        out.append({"node": i, "set": kind})
+    return out
 
 
 #: _transition's answer when the new branch's first point could not be verified (none is stored).

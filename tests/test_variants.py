@@ -206,6 +206,27 @@ def test_seed_follows_the_exact_branches_at_degenerate_transitions(case, transit
     assert not [e for e in seed.events if e.kind == "unverified_transition"]
 
 
+@pytest.mark.parametrize("friction", [0.3, 30.0])
+def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_methods(friction):
+    """f2 = -f1 on a conforming interface: the load vanishes at alpha = 1/2, and with it every
+    multiplier and indicator (an apex).  The exact method crosses it as one degenerate point; the
+    seed method found no single or double set change there and applied its fold rule unverified,
+    then cycled at F = 3 and 30.  Beyond the apex the problem is positively homogeneous, so a
+    solution at the failed step's end gives the branch: both methods take the same one."""
+    f = (-3e7, -1e8)
+    system = cfcontact.two_blocks(nx=10, ny=3, friction=friction, tractions1={"top1": f},
+                                  tractions2={"top1": (-f[0], -f[1])})
+    exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
+    assert exact.status == seed.status == "completed" and not exact.events and not seed.events
+    (te,), (ts,) = exact.transitions, seed.transitions
+    assert te.alpha == pytest.approx(0.5, abs=1e-12) and ts.bracket[0] <= 0.5 <= ts.bracket[1]
+    assert te.kind == ts.kind == "transversal" and len(ts.changes) == len(te.changes) == 10
+    assert _branch_codes(seed) == _branch_codes(exact)
+    for path in (exact, seed):
+        assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
+
+
 @pytest.mark.slow
 def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
     msh = tmp_path / "arc.msh"
