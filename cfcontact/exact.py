@@ -127,6 +127,14 @@ START_SSNM_ITERATIONS = 25
 #: this many units of their larger end's rounding (no load that moves a contact node, no gap):
 #: every solution there is zero and the problem is positively homogeneous from it.
 APEX_ULPS = DATA_ULPS
+#: A transition point where the data are smaller than this share of their scale, near an alpha
+#: where they vanish, is that apex: there the roots are ordered by the rounding of data (and of
+#: branch values) hundreds of times larger than the data themselves (a load reversed through zero
+#: at alpha = 1/3: a single root 190 ulps before the apex, then 17 tied ones 1 ulp before it).
+APEX_RTOL = 1e-10
+#: Cross an apex met along the path by its ray (:func:`_apex_crossing`); False leaves it to the
+#: lexicographic rule (benchmark Part D measures that rule on such points of m nodes).
+APEX_RULE = True
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -328,6 +336,12 @@ class _CondensedData:
         # terms of (S lam)_i row by row in O(m) (see line)
         self.sqrt_diag = np.sqrt(np.maximum(np.diagonal(solver.S), 0.0))
         self.dw_max = np.abs(self.dw).max(initial=0.0)
+        # where the data vanish (an apex, APEX_ULPS): the least-squares zero of w1 + alpha dw, or None
+        self.w_scale = max(np.abs(self.w1).max(initial=0.0), np.abs(self.w2).max(initial=0.0))
+        dd = float(self.dw @ self.dw)
+        a = -float(self.w1 @ self.dw) / dd if dd > 0.0 else 0.0
+        self.apex = a if dd > 0.0 and np.abs(self.w1 + a * self.dw).max(initial=0.0) <= (
+            APEX_ULPS * np.finfo(float).eps * self.w_scale) else None
         m = self.dw.size // 2
         self._rows3 = np.concatenate([np.arange(m), m + np.arange(m), m + np.arange(m)])
 
@@ -1104,6 +1118,15 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
     lies within the first estimate's uncertainty."""
     degenerate = len(tied) > 1
     vanishing = _vanishing(ctx, ln, tied)
+    # (the first root near an apex can be a single one)
+    apex = _apex_crossing(ctx, path, ln, s, a_star, a_err) if APEX_RULE else None
+    if apex is not None:
+        nxt, a_star = apex
+        ctx.stats["degenerate_points"] += 1
+        ctx.stats["max_vanishing"] = max(ctx.stats["max_vanishing"], len(tied))
+        changes = _named(_changes(ln, nxt, vanishing))
+        return nxt, s, Transition(len(path.transitions), a_star, "transversal", changes[0]["node"], changes[0]["set"],
+                                  branch.index, len(path.branches), bracket=(a_star, a_star), changes=changes)
     e = None
     try:
         nxt, d, pivots, e = _resolve(ctx, ln, s, a_star, tied)
@@ -1662,7 +1685,35 @@ def _is_apex(ctx: _Context, alpha) -> bool:
     return scale > 0.0 and float(np.abs(w).max(initial=0.0)) <= APEX_ULPS * eps * scale
 
 
-def _apex_start(ctx: _Context, path, alpha, s, monitor=None) -> Optional[_Line]:
+def _apex_crossing(ctx: _Context, path, ln: _Line, s, a_star, a_err) -> Optional[tuple]:
+    """(line, alpha) of the branch leaving an apex that the path reaches at a_star (a load reversed
+    through zero with no gap open: every multiplier and indicator vanishes there), or None.
+
+    As at an apex start (:func:`_apex_start`), the problem beyond it is positively homogeneous, so
+    the sets of a solution at alpha + s give the ray that leaves it; the lexicographic rule would
+    order all 3m constraints on the rounding of the data (several transitions at one alpha, or a
+    dead end at large F)."""
+    data = ctx.data
+    alpha = data.apex if ctx.condensed else None
+    if alpha is None or abs(alpha - a_star) > max(a_err, ALPHA_ULPS * _alpha_ulp(a_star),
+                                                  APEX_RTOL * data.w_scale / data.dw_max):
+        return None
+    nxt = _apex_start(ctx, path, alpha, s, event=False)
+    if nxt is None or np.array_equal(nxt.codes, ln.codes):
+        return None
+    return nxt, alpha
+
+
+def _named(changes) -> list:
+    """``changes`` (:func:`_changes`) with a set for each: where no vanishing constraint named it,
+    the first of (nu, tp, tm) that the state change toggles."""
+    def name(ch):
+        a, b = ch["from"], ch["to"]
+        return "nu" if (a == "open") != (b == "open") else "tp" if "slip+" in (a, b) else "tm"
+    return [ch if ch.get("set") is not None else {**ch, "set": name(ch)} for ch in changes]
+
+
+def _apex_start(ctx: _Context, path, alpha, s, monitor=None, event=True) -> Optional[_Line]:
     """The branch leaving an apex (see APEX_ULPS) in direction s, or None when it cannot be had.
 
     At an apex every multiplier and every indicator vanishes, so the lexicographic rule would have
@@ -1670,8 +1721,8 @@ def _apex_start(ctx: _Context, path, alpha, s, monitor=None) -> Optional[_Line]:
     end).  It needs no rule: the data are (alpha - alpha_start) (w2 - w1), so a solution's sets at
     alpha_start + s (found by SSNM, or by the exact method's homotopies) are those of a ray
     lam(alpha) = |alpha - alpha_start| lam(alpha_start + s) that solves the problem for every
-    alpha beyond alpha_start in direction s.  Its branch is checked: every constraint zero at
-    alpha_start and none decreasing.  Where several solutions exist at alpha_start + s, each is such
+    alpha beyond alpha_start in direction s.  Its branch is checked (no constraint decreasing) and
+    referenced at the apex with the values the ray has there: zero.  Where several solutions exist at alpha_start + s, each is such
     a ray from the apex; the path follows the one found (an event says so)."""
     probe = alpha + s
     sets = _ssnm_start(ctx, probe, None)
@@ -1682,8 +1733,14 @@ def _apex_start(ctx: _Context, path, alpha, s, monitor=None) -> Optional[_Line]:
         except ConvergenceError:
             return None
     ln = ctx.line(_canon(ctx.system, sets), alpha)
-    if np.any(np.abs(ln.c) > ln.tol_v) or np.any(s * ln.dc < -ln.tol_s):
+    if np.any(s * ln.dc < -ln.tol_s):
         return None
+    # at the apex the solution is zero: its values there are the rounding of data that vanish (at an
+    # alpha that is itself rounded, of the size of the rates times an ulp); the branch is the ray
+    ctx._lines.pop((ln.key, float(alpha)), None)
+    ln.lam, ln.g, ln.c = np.zeros_like(ln.lam), np.zeros_like(ln.g), np.zeros_like(ln.c)
+    if not event:
+        return ln
     path.events.append(PathEvent(
         "apex_start", alpha, f"the data vanish at alpha_start = {alpha:g} (no load on the contact, no gap): the "
         f"solution there is zero and the path leaves it on the ray of the solution found at alpha = {probe:g} "

@@ -207,24 +207,31 @@ def test_seed_follows_the_exact_branches_at_degenerate_transitions(case, transit
 
 
 @pytest.mark.parametrize("friction", [0.3, 30.0])
-def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_methods(friction):
-    """f2 = -f1 on a conforming interface: the load vanishes at alpha = 1/2, and with it every
-    multiplier and indicator (an apex).  The exact method crosses it as one degenerate point; the
-    seed method found no single or double set change there and applied its fold rule unverified,
-    then cycled at F = 3 and 30.  Beyond the apex the problem is positively homogeneous, so a
-    solution at the failed step's end gives the branch: both methods take the same one."""
+@pytest.mark.parametrize("reversal", [1.0, 2.0], ids=["apex at 1/2", "apex at 1/3"])
+def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_methods(friction, reversal):
+    """f2 = -r f1 on a conforming interface: the load vanishes at alpha = 1 / (1 + r), and with it
+    every multiplier and indicator (an apex).  Beyond it the problem is positively homogeneous, so
+    a solution beyond gives the branch that leaves it.  Before: the seed method found no single or
+    double set change there, applied its fold rule unverified and cycled at F = 3 and 30; the exact
+    method crossed 1/2 as one degenerate point but 1/3 (not a double: the load there is rounding)
+    as 2 to 8 transitions ordered by that rounding.  Now both take the same branch in one
+    transition.  The points at the apex itself are zero solutions of a load that is rounding, so
+    the relative residual is checked away from it."""
     f = (-3e7, -1e8)
+    apex = 1.0 / (1.0 + reversal)
     system = cfcontact.two_blocks(nx=10, ny=3, friction=friction, tractions1={"top1": f},
-                                  tractions2={"top1": (-f[0], -f[1])})
+                                  tractions2={"top1": (-reversal * f[0], -reversal * f[1])})
     exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
     seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
     assert exact.status == seed.status == "completed" and not exact.events and not seed.events
     (te,), (ts,) = exact.transitions, seed.transitions
-    assert te.alpha == pytest.approx(0.5, abs=1e-12) and ts.bracket[0] <= 0.5 <= ts.bracket[1]
+    assert te.alpha == pytest.approx(apex, abs=1e-15) and ts.bracket[0] <= apex <= ts.bracket[1]
     assert te.kind == ts.kind == "transversal" and len(ts.changes) == len(te.changes) == 10
     assert _branch_codes(seed) == _branch_codes(exact)
     for path in (exact, seed):
-        assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
+        assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points() if abs(a - apex) > 1e-9) < 1e-12
+    y_apex = [y for a, y in exact.iter_points() if abs(a - apex) <= 1e-9]
+    assert len(y_apex) == 2 and max(np.abs(y[system.n:]).max() for y in y_apex) < 1e-12 * np.abs(f).max()
 
 
 @pytest.mark.slow
