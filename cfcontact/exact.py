@@ -1770,7 +1770,7 @@ def reach_start(system, alpha, path, options: Optional[PathOptions] = None, moni
         if rctx is not ctx:
             for k, v in rctx.stats.items():
                 ctx.stats[k] += v
-        ctx.stats["homotopy_transitions"] = transitions
+        ctx.stats["homotopy_transitions"] += transitions  # (an apex crossing may add its own)
     if sets is not None:
         log.info("SSNM did not converge at alpha_start=%g; the start was reached by the exact method from the %s "
                  "state (%d transitions)", alpha, "frictionless" if how == "frictionless" else "all-open", transitions)
