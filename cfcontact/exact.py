@@ -1722,8 +1722,9 @@ def _apex_start(ctx: _Context, path, alpha, s, monitor=None, event=True) -> Opti
     alpha_start + s (found by SSNM, or by the exact method's homotopies) are those of a ray
     lam(alpha) = |alpha - alpha_start| lam(alpha_start + s) that solves the problem for every
     alpha beyond alpha_start in direction s.  Its branch is checked (no constraint decreasing) and
-    referenced at the apex with the values the ray has there: zero.  Where several solutions exist at alpha_start + s, each is such
-    a ray from the apex; the path follows the one found (an event says so)."""
+    referenced at the apex with the values the ray has there: zero.  Where several solutions exist
+    at alpha_start + s, each is such a ray from the apex; the path follows the one found (an event
+    says so)."""
     probe = alpha + s
     sets = _ssnm_start(ctx, probe, None)
     how = "ssnm"

@@ -225,7 +225,6 @@ class SeedStepper(Stepper):
         self.done = tkind == "transversal" and (a_next >= hi or a_next <= lo)
         return idx
 
-
     def _through_apex(self, alpha, a1):
         """A transversal continuation through an apex between alpha and a1, or None.
 
@@ -273,8 +272,8 @@ def _set_changes(system, Z0, Z1) -> list:
     out = []
     for i in np.flatnonzero(c0 != c1):
         i = int(i)
-        kind = next((k for k, a, b in (("nu", Z0.nu, Z1.nu), ("tp", Z0.tp, Z1.tp), ("tm", Z0.tm, Z1.tm)) if a[i] != b[i]),
-                    "nu")
+        pairs = (("nu", Z0.nu, Z1.nu), ("tp", Z0.tp, Z1.tp), ("tm", Z0.tm, Z1.tm))
+        kind = next((k for k, a, b in pairs if a[i] != b[i]), "nu")
         out.append({"node": i, "set": kind})
     return out
 

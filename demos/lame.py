@@ -58,7 +58,8 @@ def hub_in_bore(nodes, delta=DELTA, plane="strain", friction=FRICTION):
         curves = [c for _, c in model.getBoundary(hub, oriented=False)]
         outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5 * (INNER + OUTER)]
         inner = [c for c in curves if c not in outer]
-        for dim, tags, num, name in ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1")):
+        groups = ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1"))
+        for dim, tags, num, name in groups:
             model.addPhysicalGroup(dim, tags, num)
             model.setPhysicalName(dim, num, name)
         for c in outer:

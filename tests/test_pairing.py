@@ -177,7 +177,8 @@ def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3, nu=0.3):
         curves = [c for _, c in model.getBoundary(hub, oriented=False)]
         outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5]
         inner = [c for c in curves if c not in outer]
-        for dim, tags, num, name in ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1")):
+        groups = ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1"))
+        for dim, tags, num, name in groups:
             model.addPhysicalGroup(dim, tags, num)
             model.setPhysicalName(dim, num, name)
         for c in outer:
