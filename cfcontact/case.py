@@ -1045,9 +1045,11 @@ def reference_text() -> str:
         _section_text("[contact]", {k: v for k, v in SCHEMA["contact"].items() if k != "obstacle"}),
         _section_text(f"# [contact.obstacle]  # {SCHEMA['contact']['obstacle'].doc.split(';')[0]}: kind = "
                       '"block_on_foundation" or a .msh', {
-                          "kind": Key("str", None, '"circle"', '"circle" (center, radius) or "line" (point, normal)'),
+                          "kind": Key("str", None, '"circle"',
+                                      '"circle" (center, radius[, inside]) or "line" (point, normal)'),
                           "center": Key("vec", None, "[1.5, -10.0]", _OBSTACLE_DOCS["center"]),
                           "radius": Key("float", None, "10.0", _OBSTACLE_DOCS["radius"]),
+                          "inside": Key("bool", None, "false", f"kind = \"circle\": {_OBSTACLE_DOCS['inside']}"),
                           "point": Key("vec", None, "[0.0, -1.0e-3]", f"kind = \"line\": {_OBSTACLE_DOCS['point']}"),
                           "normal": Key("vec", None, "[0.0, 1.0]", f"kind = \"line\": {_OBSTACLE_DOCS['normal']}"),
                       }, True),
