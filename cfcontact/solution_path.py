@@ -296,9 +296,10 @@ class SolutionPath:
             ind = self._ind.get(b) if indicators is not None else None
             if ind is not None and ind[0] != a_r:
                 ind = None
-            # (an open branch, lam = 0 at both ends: by its relative displacements B u)
-            at_exit = ((_size(lam), self._contact_size(lam, indicators) if ind is not None else 0.0)
-                       < (_size(lr), self._contact_size(lr, ind[1]) if ind is not None else 0.0))
+            # (an open branch, lam = 0 at both ends: by its relative displacements B u, formed only then)
+            s_exit, s_ref = _size(lam), _size(lr)
+            at_exit = s_exit < s_ref or (s_exit == s_ref and ind is not None and
+                                         self._contact_size(lam, indicators) < self._contact_size(lr, ind[1]))
             dl = (lam - lr) / da
             self._lam[b] = (alpha, lam, dl) if at_exit else (a_r, lr, dl)
             if ind is not None:
