@@ -336,12 +336,9 @@ class _CondensedData:
         # terms of (S lam)_i row by row in O(m) (see line)
         self.sqrt_diag = np.sqrt(np.maximum(np.diagonal(solver.S), 0.0))
         self.dw_max = np.abs(self.dw).max(initial=0.0)
-        # where the data vanish (an apex, APEX_ULPS): the least-squares zero of w1 + alpha dw, or None
+        # where the data vanish (an apex), or None
         self.w_scale = max(np.abs(self.w1).max(initial=0.0), np.abs(self.w2).max(initial=0.0))
-        dd = float(self.dw @ self.dw)
-        a = -float(self.w1 @ self.dw) / dd if dd > 0.0 else 0.0
-        self.apex = a if dd > 0.0 and np.abs(self.w1 + a * self.dw).max(initial=0.0) <= (
-            APEX_ULPS * np.finfo(float).eps * self.w_scale) else None
+        self.apex = affine_zero(self.w1, self.w2)
         m = self.dw.size // 2
         self._rows3 = np.concatenate([np.arange(m), m + np.arange(m), m + np.arange(m)])
 
@@ -1668,6 +1665,18 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
         codes = _canon(system, start_sets)
     ln, s = _leave_start(ctx, path, codes, alpha, s)
     return ln, s, how
+
+
+def affine_zero(v1, v2) -> Optional[float]:
+    """The alpha where (1 - alpha) v1 + alpha v2 vanishes (its least-squares zero, to APEX_ULPS of
+    the larger end's rounding), or None: the apex of affine contact data or loads."""
+    d = v2 - v1
+    dd = float(d @ d)
+    if dd == 0.0:
+        return None
+    a = -float(v1 @ d) / dd
+    scale = max(np.abs(v1).max(initial=0.0), np.abs(v2).max(initial=0.0))
+    return a if np.abs(v1 + a * d).max(initial=0.0) <= APEX_ULPS * np.finfo(float).eps * scale else None
 
 
 def _is_apex(ctx: _Context, alpha) -> bool:

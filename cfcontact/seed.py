@@ -233,19 +233,13 @@ class SeedStepper(Stepper):
         alpha*, and no single or double set change continues the path.  Beyond alpha* the problem is
         positively homogeneous: the sets of a solution at a1 (SSNM with its restarts, else the
         exact method's homotopies) are those of the ray that leaves the apex."""
-        from cfcontact.exact import APEX_ULPS
+        from cfcontact.exact import affine_zero
 
         system, solver = self.system, self.solver
         if np.any(np.asarray(system.gap) != 0.0):
             return None
-        f1, df = self.f1, self.f2 - self.f1
-        dd = float(df @ df)
-        if dd == 0.0:
-            return None
-        a_star = -float(f1 @ df) / dd
-        scale = max(np.abs(self.f1).max(initial=0.0), np.abs(self.f2).max(initial=0.0))
-        if not (min(alpha, a1) <= a_star <= max(alpha, a1)) or \
-                np.abs(f1 + a_star * df).max(initial=0.0) > APEX_ULPS * np.finfo(float).eps * scale:
+        a_star = affine_zero(self.f1, self.f2)
+        if a_star is None or not (min(alpha, a1) <= a_star <= max(alpha, a1)):
             return None
         try:
             Z1 = self._sets_at(a1)

@@ -46,26 +46,33 @@ NODES = (64, 128, 256)
 MAX_ERROR, MIN_ORDER = 1e-3, 1.5
 
 
+def mesh_hub(model, nodes, size):
+    """Build and mesh the hub into the gmsh ``model``: the annulus INNER < r < OUTER (``body1``),
+    ``nodes`` equally spaced nodes on its outer circle (``contact1``), its inner circle
+    ``inner1``, elements of at most ``size``."""
+    import gmsh
+
+    occ = model.occ
+    hub, _ = occ.cut([(2, occ.addDisk(0, 0, 0, OUTER, OUTER))], [(2, occ.addDisk(0, 0, 0, INNER, INNER))])
+    occ.synchronize()
+    curves = [c for _, c in model.getBoundary(hub, oriented=False)]
+    outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5 * (INNER + OUTER)]
+    inner = [c for c in curves if c not in outer]
+    groups = ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1"))
+    for dim, tags, num, name in groups:
+        model.addPhysicalGroup(dim, tags, num)
+        model.setPhysicalName(dim, num, name)
+    for c in outer:
+        model.mesh.setTransfiniteCurve(c, nodes + 1)  # a closed curve: its first node is its last
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    model.mesh.generate(2)
+
+
 def hub_in_bore(nodes, delta=DELTA, plane="strain", friction=FRICTION):
     """The press fit's ContactSystem: the hub meshed by gmsh with ``nodes`` nodes on its outer
     circle, in a rigid bore of radius OUTER - delta."""
-    import gmsh
-
     with compat.gmsh_model("lame") as model:
-        occ = model.occ
-        hub, _ = occ.cut([(2, occ.addDisk(0, 0, 0, OUTER, OUTER))], [(2, occ.addDisk(0, 0, 0, INNER, INNER))])
-        occ.synchronize()
-        curves = [c for _, c in model.getBoundary(hub, oriented=False)]
-        outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5 * (INNER + OUTER)]
-        inner = [c for c in curves if c not in outer]
-        groups = ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1"))
-        for dim, tags, num, name in groups:
-            model.addPhysicalGroup(dim, tags, num)
-            model.setPhysicalName(dim, num, name)
-        for c in outer:
-            model.mesh.setTransfiniteCurve(c, nodes + 1)  # a closed curve: its first node is its last
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 2.0 * math.pi * OUTER / nodes)
-        model.mesh.generate(2)
+        mesh_hub(model, nodes, 2.0 * math.pi * OUTER / nodes)
         return cfcontact.assemble_contact_system(
             model, E=E, nu=NU, plane=plane, clamp=("inner1",), friction=friction,
             obstacle={"kind": "circle", "center": (0.0, 0.0), "radius": OUTER - delta, "inside": True})

@@ -5,6 +5,8 @@ analytic gaps of lines and circles, the exactness of linear interpolation (a rig
 affine field gives the same relative displacement through any pairing), and timing.
 """
 
+import os
+import sys
 import time
 import warnings
 
@@ -14,6 +16,9 @@ import pytest
 import cfcontact
 from cfcontact import pairing
 from cfcontact.errors import GeometryError, InputError, PairingWarning
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos"))
+import lame  # noqa: E402  (demos/lame.py: the hub's gmsh model)
 
 
 def _dense(system):
@@ -171,22 +176,7 @@ def _hub_in_bore(clearance, U, nodes=48, inside=True, friction=0.3, nu=0.3):
     from cfcontact import compat
 
     with compat.gmsh_model("hub") as model:
-        occ = model.occ
-        hub, _ = occ.cut([(2, occ.addDisk(0, 0, 0, 1, 1))], [(2, occ.addDisk(0, 0, 0, 0.3, 0.3))])
-        occ.synchronize()
-        curves = [c for _, c in model.getBoundary(hub, oriented=False)]
-        outer = [c for c in curves if model.getBoundingBox(1, c)[3] > 0.5]
-        inner = [c for c in curves if c not in outer]
-        groups = ((2, [hub[0][1]], 1, "body1"), (1, outer, 10, "contact1"), (1, inner, 14, "inner1"))
-        for dim, tags, num, name in groups:
-            model.addPhysicalGroup(dim, tags, num)
-            model.setPhysicalName(dim, num, name)
-        for c in outer:
-            model.mesh.setTransfiniteCurve(c, nodes + 1)  # (a closed curve: its first node is its last)
-        import gmsh
-
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.15)
-        model.mesh.generate(2)
+        lame.mesh_hub(model, nodes, 0.15)  # (demos/lame.py: radii 0.3 and 1)
         return cfcontact.assemble_contact_system(
             model, clamp=(), friction=friction, nu=nu, obstacle={"kind": "circle", "center": (0.0, 0.0),
                                                            "radius": 1.0 + clearance, "inside": inside},
