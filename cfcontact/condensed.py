@@ -14,8 +14,9 @@ DirNeu(Z, f) (docs/theory.md (9)) is then the dense system M(Z) lam = r(Z, w) wi
     tangential row : A_t : (S lam)_{m+i} = w_{m+i}    I_t : lam_t,i - F (1_{I_t+} - 1_{I_t-}) lam_n,i = 0
 
 followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP:
-on one rank and for n <= NATIVE_MAX_DOFS PETSc's own Cholesky, S = X X^T from the forward
-substitutions X of B's rows; otherwise MUMPS when available, which works under MPI), or forms
+on one rank and for n <= NATIVE_MAX_DOFS or a small RCM envelope (NATIVE_ENVELOPE_PER_DOF)
+PETSc's own Cholesky, S = X X^T from the forward substitutions X of B's rows when they fit;
+otherwise MUMPS when available, which works under MPI), or forms
 K^-1 B^T with multi-right-hand-side solves
 (``MatMatSolve``: on one rank with MUMPS B^T as one sparse right-hand side, else dense blocks
 of columns) only to get S, or takes S from MUMPS' Schur complement; it caches w for the loads seen
@@ -71,6 +72,14 @@ SCHUR_MAX_CONTACT_SHARE = 0.02
 #: grows like sqrt(n): on the two-block meshes of the benchmark MUMPS was as fast at n = 1872 and
 #: faster from n = 2880 (13 ms instead of 17 ms; 21 instead of 32 ms at n = 4104).
 NATIVE_MAX_DOFS = 2000
+#: Beyond NATIVE_MAX_DOFS PETSc's Cholesky is still taken when the envelope of K in RCM order (the
+#: entries of that factor, :func:`cfcontact.linalg.rcm_envelope`) is at most this many per DOF:
+#: long thin bodies, whose band does not grow with their length.  On the strips of benchmark
+#: Part C (13.5 per DOF; n = 48 000) one solve took 0.57 ms instead of MUMPS' 12 ms and the
+#: factorization 20 ms instead of 132 ms; on the two-block meshes (37 per DOF at n = 2880, 226 at
+#: n = 1.2e5) MUMPS' factorization is as fast or faster and stays.  (S then comes from solves when
+#: the forward substitutions' dense rows would exceed STORE_LIMIT entries.)
+NATIVE_ENVELOPE_PER_DOF = 32
 #: S from MUMPS' Schur complement is kept only when it agrees with one solve with K to this
 #: (relative) on a probe vector; else it is formed by solves.
 SCHUR_CHECK_RTOL = 1e-11
@@ -96,6 +105,26 @@ REFINE_RTOL = 1e-10
 #: ill-conditioned for refinement to contract) is logged as a warning.
 REFINE_TARGET = 1e-14
 REFINE_MAX_STEPS = 3
+#: A branch of the exact method is corrected against K itself (:meth:`CondensedSolver.true_rows`)
+#: when S's remaining error (``s_error``, at least the rounding unit) times rho |w| exceeds this
+#: share of the branch's indicators (the multipliers and rho B u; :meth:`needs_true`).  On a
+#: slender body the data are the deflection the load alone would cause (the m = 2000 strip at
+#: F = 30: rho |w| = 4e14 against multipliers of 3e6 and open gaps of 1e9), and the branch's
+#: equations N u = g, T u = 0 are differences of such numbers: S's error (7e-15 of S lam, after
+#: its correction) left closed nodes 2.8e-9 (relative) from their gap.  The correction -- the
+#: equations' residual read from B u with u = K^-1 (f - B^T lam) by refined solves, solved with the
+#: branch's factorization -- brings them to the rounding of u.  Two solves with K per branch (and
+#: one per refinement step); the seed-sized models, the blocks of Part B and strips up to m = 500
+#: never need it (only refined models are considered: unrefined, u shares S's rounding).
+POLISH_RTOL = 1e-10
+#: At most this many corrections per branch (each: one solve with the branch's factorization, two
+#: with K); they stop when the equations' residual is within POLISH_RTOL of the indicators.
+POLISH_MAX_STEPS = 3
+#: ... and while the probe's refinement leaves more than this of B x (relative), every refined
+#: solve takes one step more from then on: u and B u must carry the digits the correction is
+#: for (the m = 4000 strip: 4.7e-8 after the first solve, 4.7e-15 after one step; with one step
+#: closed nodes stayed 1.4e-9 from their gap at F = 30).
+POLISH_SOLVE_RTOL = 1e-16
 #: The double-double residuals of many columns go in blocks of at most this many entries.
 REFINE_BLOCK_ENTRIES = 40_000_000
 #: S's correction to the accuracy of refined solves (:meth:`CondensedSolver._corrected`): random
@@ -195,11 +224,13 @@ class CondensedStats(SolverStats):
     dense_factorizations: int = 0
     dense_solves: int = 0
     dense_updates: int = 0
+    #: branches corrected against K (see POLISH_RTOL)
+    true_corrections: int = 0
 
     def as_dict(self) -> dict:
         d = super().as_dict()
         d.update(dense_factorizations=self.dense_factorizations, dense_solves=self.dense_solves,
-                 dense_updates=self.dense_updates)
+                 dense_updates=self.dense_updates, true_corrections=self.true_corrections)
         return d
 
 
@@ -251,7 +282,7 @@ class CondensedSolver:
         self._updater = None  # factorization updates of the exact method's branches (_Updater)
         self._imposed_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()  # imposed_rows by state
         self.solver_type = self.options.solver_type or (
-            "petsc" if self.size == 1 and self.n <= NATIVE_MAX_DOFS and not schur else _default_solver_type(self.size))
+            "petsc" if self.size == 1 and not schur and self._native_fits() else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
         self._lu_extra: dict = {}  # key -> (lu, rows of S on the support, positions of slip nodes' lam_n,
         #                                     their lam_t rows, their coefficients as a column)
@@ -309,8 +340,12 @@ class CondensedSolver:
         #: relative correction of B x that the first step made on the set-up's probe solve (None:
         #: no probe)
         self.refine_steps, self.solve_error, self._correction_rtol, self._probed = 0, None, None, False
-        #: rank of the correction that made S as accurate as refined solves (0: none needed)
-        self.correction_rank = 0
+        #: what the probe's refinement left (relative, in B x), and the refinement steps added once
+        #: branches are corrected against K while that is above POLISH_SOLVE_RTOL (see needs_true)
+        self.refine_floor, self.polish_steps = None, 0
+        #: rank of the correction that made S as accurate as refined solves (0: none needed), and
+        #: what its check vectors left of S's error (relative; None: S not corrected)
+        self.correction_rank, self.s_error = 0, None
         if S is not None:
             self._probe_refinement()
             if self.refine_steps:
@@ -323,7 +358,8 @@ class CondensedSolver:
         #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
         self.condensation = "schur" if S is not None else "solves"
         if S is None:
-            if self.k_factorization == "cholesky/petsc" and store_columns is not False:
+            if (self.k_factorization == "cholesky/petsc" and store_columns is not False
+                    and (2 * m + 2) * self.n <= STORE_LIMIT):
                 S = self._condense_forward()  # (checks K's regularity first: a clear error if singular)
                 if S is not None:
                     self.condensation = "forward"
@@ -339,6 +375,13 @@ class CondensedSolver:
         #: not symmetrized, see :meth:`_schur`; a corrected S is)
         self.St = self.S if np.array_equal(self.S, self.S.T) else np.ascontiguousarray(self.S.T)
         self.timings["condensation"] = time.perf_counter() - t0
+
+    def _native_fits(self) -> bool:
+        """Is PETSc's own Cholesky (RCM order) the better factorization of K (one rank): n at most
+        NATIVE_MAX_DOFS, or an RCM envelope of at most NATIVE_ENVELOPE_PER_DOF per DOF?"""
+        if self.n <= NATIVE_MAX_DOFS:
+            return True
+        return linalg.rcm_envelope(linalg.local_csr(self.system.K)) <= NATIVE_ENVELOPE_PER_DOF * self.n
 
     def _schur_accurate(self, S) -> bool:
         """Does S from the Schur complement agree with B K^-1 B^T applied by one solve with K, on a
@@ -415,6 +458,7 @@ class CondensedSolver:
             return
         self._probed = True
         self.refine_steps, self.solve_error, floor = self._probe()
+        self.refine_floor = floor
         self._correction_rtol = max(REFINE_TARGET, 10 * floor) if self.refine_steps else None
 
     def _probe(self):
@@ -459,20 +503,22 @@ class CondensedSolver:
     def _ksolve_refined(self, rhs_local: np.ndarray) -> np.ndarray:
         """K^-1 rhs (local rows of one vector), refined with self.refine_steps steps."""
         x = self._ksolve(rhs_local)
-        for _ in range(self.refine_steps):
+        for _ in range(self.refine_steps + self.polish_steps):
             x += self._ksolve(self._kresidual(rhs_local, x))
         return x
 
     def _refine_columns(self, X: np.ndarray, rhs) -> np.ndarray:
-        """X = K^-1 rhs (local rows, nloc x k), corrected in place by self.refine_steps steps,
-        in blocks of columns; ``rhs``: the right-hand sides (nloc x k).  Collective under MPI."""
-        if not self.refine_steps or X.shape[1] == 0:
+        """X = K^-1 rhs (local rows, nloc x k), corrected in place by self.refine_steps steps
+        (and polish_steps), in blocks of columns; ``rhs``: the right-hand sides (nloc x k).
+        Collective under MPI."""
+        steps = self.refine_steps + self.polish_steps
+        if not steps or X.shape[1] == 0:
             return X
         k = X.shape[1]
         block = max(1, REFINE_BLOCK_ENTRIES // max(self.n, 1))  # self.n: the same on every rank
         for c0 in range(0, k, block):
             sl = slice(c0, min(k, c0 + block))
-            for _ in range(self.refine_steps):
+            for _ in range(steps):
                 X[:, sl] += self._ksolve_dense(np.asfortranarray(self._kresidual(rhs[:, sl], X[:, sl])))
         return X
 
@@ -518,7 +564,7 @@ class CondensedSolver:
             Se, W = self._s_exact(np.eye(m2), loads)
             self._cache_loads(loads, W)
             S[...] = 0.5 * (Se + Se.T)
-            self.correction_rank = m2
+            self.correction_rank, self.s_error = m2, 0.0
             return S
         if not np.array_equal(S, S.T):
             # S by unrefined solves is not symmetric (see _schur); its antisymmetric part is error
@@ -538,7 +584,7 @@ class CondensedSolver:
                     msg = f"S is off by {err:.1e} (relative) from refined solves after a correction of rank {rank}"
                     if required:
                         log.warning("%s; kept as it is", msg)
-                        self.correction_rank = rank
+                        self.correction_rank, self.s_error = rank, err
                         return S
                     log.info("%s; S is formed by solves instead", msg)
                     return None
@@ -554,7 +600,7 @@ class CondensedSolver:
                 # what is left, seen by the check columns
                 err = np.abs(Y[:, ks:] - QT @ (Q.T @ Om[:, ks:])).max() / scale
             if err <= self._correction_rtol:
-                self.correction_rank = rank
+                self.correction_rank, self.s_error = rank, err
                 log.info("S corrected by rank %d: %.1e (relative) left on %d random vectors", rank, err, kv)
                 return S
 
@@ -717,6 +763,62 @@ class CondensedSolver:
         return S
 
     # ---------------------------------------------------------------- loads
+    def needs_true(self, W: np.ndarray, G: np.ndarray) -> bool:
+        """Can the rounding of a branch's data reach POLISH_RTOL of its indicators G[:, 0] (the
+        multipliers and rho B u)?  S's error after its correction (or the rounding unit), times
+        rho |w| (W's first column).  Only with refined solves (``refine_steps``): unrefined, u
+        shares S's rounding and is formed as consistently as S (see REFINE_RTOL)."""
+        if not self.refine_steps or self.s_error is None:
+            return False
+        err = max(self.s_error, np.finfo(float).eps) * self.system.rho * np.abs(W[:, 0]).max(initial=0.0)
+        if not err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0):
+            return False
+        if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
+            self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
+        return True
+
+    def against_K(self, W, L, G, imposed, true, correction) -> tuple:
+        """(L, G) of a branch (data W, multipliers L, indicators G, equation rows ``imposed``)
+        with its equations solved against K: R = :meth:`true_rows` (``true`` = (loads, gap)), and
+        while the equations' residual rho R[imposed] exceeds POLISH_RTOL of the indicators (per
+        column), L += correction(R, L) (the branch's own solve; at most POLISH_MAX_STEPS, and only
+        while each halves the residual: below that it is rounding).  G then reads the free rows
+        of B u from the last R, which belongs to the returned L: no product with S."""
+        loads, gap = true
+        if callable(loads):
+            loads = loads()
+        rho = self.system.rho
+
+        def measure(L):
+            R = self.true_rows(loads, L, gap)
+            return R, rho * np.abs(R[imposed]).max(axis=0, initial=0.0)
+
+        R, res = measure(L)
+        scale = POLISH_RTOL * np.abs(G).max(axis=0, initial=0.0)
+        for _ in range(POLISH_MAX_STEPS):
+            if (res <= scale).all():
+                break
+            L1 = L + correction(R, L)
+            self.stats.dense_solves += L.shape[1]
+            R1, res1 = measure(L1)
+            if not res1.max() < 0.5 * res.max():
+                break
+            L, R, res = L1, R1, res1
+        self.stats.true_corrections += 1
+        return L, self._ind(L, W, W - R, imposed)
+
+    def true_rows(self, loads: np.ndarray, L: np.ndarray, gap) -> np.ndarray:
+        """B u_j - (g; 0) gap_j for u_j = K^-1 (loads_j - B^T L_j), the columns of ``loads`` (full
+        vectors, n x c) and of L (2m x c), by refined solves: the rows of B u that w_j - S L_j
+        stands for, without S's error.  ``gap``: per column, whether its data include the gap (a
+        value; not a rate).  Collective under MPI."""
+        rhs = np.asfortranarray(loads[self.r0:self.r1] - self.B_local.T @ L)
+        X = self._refine_columns(self._ksolve_dense(rhs), rhs)
+        R = self._allreduce(np.ascontiguousarray(self.B_local @ X))
+        if self.system.has_gap:
+            R[:self.m] -= np.outer(self.system.gap, np.asarray(gap, dtype=float))
+        return R
+
     def load_data(self, f: np.ndarray) -> np.ndarray:
         """w = B K^-1 f - (g; 0) (B K^-1 f cached for the last few loads), g the system's gap."""
         for g, w in self._loads:
@@ -899,7 +1001,7 @@ class CondensedSolver:
         return lam
 
     def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False,
-                    plain: bool = False) -> tuple:
+                    plain: bool = False, true=None) -> tuple:
         """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
@@ -909,11 +1011,14 @@ class CondensedSolver:
         perturbation responses of the intermediate branches of a degenerate point, which only order
         its pivots).  ``refine``: a third result, the change the refinement made to the indicators
         (3m x k), an estimate of their rounding error (with updates: the change of the last of their
-        refinement steps, times its contraction)."""
+        refinement steps, times its contraction).  ``true``: (loads, gap) of W's columns (see
+        :meth:`true_rows`; loads may be a callable that returns them): where the data's rounding
+        can reach the multipliers (:meth:`needs_true`), a last correction solves the residual of the
+        branch's equations in B u from solves with K, not w - S lam (see POLISH_RTOL)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
-            return self._updater.branch_data(W, codes, refine)
+            return self._updater.branch_data(W, codes, refine, true)
         entry = self._lu.get(key)
         if entry is None:
             entry = self._factor_codes(key, np.asarray(codes))
@@ -956,6 +1061,8 @@ class CondensedSolver:
             SL = SL + SD
         self.stats.dense_solves += (1 + steps) * c
         G = self._ind(L, W, SL, imposed)
+        if true is not None and self.needs_true(W, G):  # the equations' residual from solves with K
+            L, G = self.against_K(W, L, G, imposed, true, lambda R, L: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
         if not refine:
             return L, G
         return L, G, np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
@@ -1660,7 +1767,7 @@ class _Updater:
         """r(Z, W) - M(Z) X (S rows scaled by rho), with SX = S X."""
         return _scaled_residual(types, W, X, SX, self.rho)
 
-    def branch_data(self, W, codes, refine=True):
+    def branch_data(self, W, codes, refine=True, true=None):
         """(lam, g[, Eg]) as :meth:`CondensedSolver.branch_data`, by updates."""
         s = self.s
         codes = np.asarray(codes, dtype=np.int8)
@@ -1734,6 +1841,9 @@ class _Updater:
         s.stats.dense_updates += 1
         self.updates += 1
         G = s._ind(L, W, SL, imposed)
+        if true is not None and s.needs_true(W, G):  # the equations' residual from solves with K
+            L, G = s.against_K(W, L, G, imposed, true,
+                               lambda R, L: solve(_scaled_residual(types, W, L, W - R, self.rho)))
         if not refine:
             return L, G
         return L, G, Eg

@@ -326,9 +326,12 @@ class _Line:
 class _CondensedData:
     """Branch data from the condensed backend: multipliers and indicators in O(m^2) per branch."""
 
-    def __init__(self, solver, W):
+    def __init__(self, solver, W, loads=None):
         self.solver = solver
         self.w1, self.w2 = np.array(W[:, 0]), np.array(W[:, 1])
+        # the loads (f1, f2) whose data W are: with them a branch whose data's rounding can reach
+        # its multipliers is corrected against K (condensed.POLISH_RTOL); None (a homotopy's data)
+        self.loads = loads
         self.dw = self.w2 - self.w1
         self.rho = solver.system.rho
         self.WE = None  # perturbation data B K^-1 E (2m x J)
@@ -362,7 +365,11 @@ class _CondensedData:
         np.multiply(self.w1, 1.0 - alpha, out=w)
         w += alpha * self.w2
         W[:, 1] = self.dw
-        L, G, Eg = self.solver.branch_data(W, key, codes, refine=True)
+        true = None
+        if self.loads is not None:  # (the loads of W's columns: f(alpha) and the rate f2 - f1)
+            f1, f2 = self.loads
+            true = (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1]), (True, False))
+        L, G, Eg = self.solver.branch_data(W, key, codes, refine=True, true=true)
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
         # B u rows are equations of the branch, exactly zero (CondensedSolver._ind)
@@ -488,7 +495,9 @@ class _Context:
         if hasattr(solver, "branch_data"):
             if W is None:
                 W = solver.load_data_many([self.f1, self.f2])
-            self.data = _CondensedData(solver, W)
+                self.data = _CondensedData(solver, W, (self.f1, self.f2))
+            else:
+                self.data = _CondensedData(solver, W)
             self.condensed = True
         else:
             self.data = _FullData(system, solver)

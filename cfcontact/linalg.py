@@ -147,6 +147,24 @@ def local_csr(A) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(av).copy(), np.asarray(aj).copy(), np.asarray(ai).copy()), shape=(r1 - r0, n))
 
 
+def rcm_envelope(A: sp.spmatrix) -> int:
+    """The entries of the lower triangle's envelope of A (symmetric, n x n) in reverse
+    Cuthill-McKee order: sum over rows of (row - first column + 1), what a profile (skyline)
+    Cholesky factor of A in that order holds.  O(nnz)."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    A = sp.csr_matrix(A)
+    if A.shape[0] == 0:
+        return 0
+    p = reverse_cuthill_mckee(A, symmetric_mode=True)
+    P = A[p][:, p].tocsr()
+    first = np.minimum.reduceat(P.indices, P.indptr[:-1]) if P.nnz else np.arange(P.shape[0])
+    rows = np.arange(P.shape[0])
+    empty = np.diff(P.indptr) == 0
+    first = np.where(empty, rows, np.minimum(first, rows))
+    return int((rows - first + 1).sum())
+
+
 def inertia(A):
     """(negative, zero, positive) eigenvalue counts of a symmetric AIJ matrix from its LDL^T
     (Cholesky) factorization, or None when this PETSc cannot tell (no MUMPS under MPI).  A

@@ -209,3 +209,35 @@ def test_stiff_contrast_residual_is_the_weight_of_rho_not_the_solution():
                                atol=1e-9)
     assert worst_residual(soft, p2) < 1e-11
     assert worst_residual(system, p1) > 100 * worst_residual(soft, p2)  # the same solutions, weighed by rho
+
+
+@pytest.mark.parametrize("updates", [True, False])
+def test_branches_are_corrected_against_K_where_S_error_reaches_their_multipliers(strip, monkeypatch, updates):
+    """S given an error of 1e-9 of its size (symmetric, random: a condensation that lost digits),
+    and s_error saying so: each branch's equations are then solved against B u from refined solves
+    with K (condensed.POLISH_RTOL), and the stored points, checked with u formed from their
+    multipliers by the reference solve (SuperLU, refined), satisfy (1)-(3) of the true K to
+    rounding; without the correction they carry S's error.  The set changes are those of the
+    accurate S, alpha within 1e-8."""
+    u_true = refined_solver(linalg.gather_mat(strip.K))
+    n = strip.n
+    accurate = cfcontact.trace_path(strip, 0.0, 1.0, method="exact", solver=CondensedSolver(strip))
+    changes = [(t.node, t.set, t.kind) for t in accurate.transitions]
+    worst, counts = {}, {}
+    for rtol in (np.inf, condensed.POLISH_RTOL):
+        monkeypatch.setattr(condensed, "POLISH_RTOL", rtol)
+        solver = CondensedSolver(strip, SolverOptions(updates=updates))
+        E = np.random.default_rng(7).standard_normal(solver.S.shape)
+        solver.S = solver.S + 0.5e-9 * np.abs(solver.S).max() * (E + E.T)
+        solver.St, solver.s_error = solver.S, 1e-9
+        path = cfcontact.trace_path(strip, 0.0, 1.0, method="exact", solver=solver)
+        assert path.status == "completed", path.events
+        if rtol < np.inf:  # (without the correction S's error moves alpha by 2e-3)
+            assert [(t.node, t.set, t.kind) for t in path.transitions] == changes
+            assert max(abs(t.alpha - r.alpha) for t, r in zip(path.transitions, accurate.transitions)) < 1e-8  # 1.1e-9
+        worst[rtol] = max(
+            verify(strip, np.concatenate([u_true(strip.load(a) - solver.B.T @ y[n:]), y[n:]]), a, solver=solver).worst()
+            for a, y in path.iter_points())
+        counts[rtol] = solver.stats.true_corrections
+    assert counts[np.inf] == 0 and counts[condensed.POLISH_RTOL] >= len(changes)
+    assert worst[np.inf] > 1e-8 and worst[condensed.POLISH_RTOL] < 1e-11, worst  # 2.0e-7 and 4.6e-12

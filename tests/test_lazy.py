@@ -3,9 +3,10 @@ complement for S, reduced dense systems, batched displacements and the condensed
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import cfcontact
-from cfcontact import condensed
+from cfcontact import condensed, linalg
 from cfcontact.condensed import CondensedSolver
 from cfcontact.exact import canonical_codes
 from cfcontact.lumped import one_node, random_system
@@ -127,7 +128,8 @@ def test_s_by_solves_is_the_solves_own_so_formed_points_meet_their_gaps():
     from cfcontact.bench_stress import strip
 
     system = strip(500, 0.3, seed=0)
-    solver = CondensedSolver(system, SolverOptions(refine=False))
+    # (MUMPS: by default this thin strip is factored by PETSc's Cholesky, S from forward substitutions)
+    solver = CondensedSolver(system, SolverOptions(refine=False, solver_type="mumps"))
     assert solver.condensation == "solves" and not np.array_equal(solver.S, solver.S.T)
     assert np.array_equal(solver.St, solver.S.T) and solver.St.flags.c_contiguous
     sol = cfcontact.ssnm(system, 0.0, solver=solver)
@@ -187,8 +189,42 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     system = random_system(4, 3, friction=0.8, extra_dofs=6)
     assert CondensedSolver(system, options=SolverOptions(solver_type="petsc")).condensation == "forward"
     assert CondensedSolver(system, options=MUMPS).k_factorization == "lu/mumps"
-    monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: MUMPS by default
+    monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: K's envelope decides
+    per_dof = linalg.rcm_envelope(linalg.local_csr(system.K)) / system.n
+    monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", per_dof)
+    assert CondensedSolver(system).k_factorization == "cholesky/petsc"
+    monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", 0.99 * per_dof)  # a wider band: MUMPS
     assert CondensedSolver(system).k_factorization == "lu/mumps"
+
+
+def test_rcm_envelope_is_the_size_of_petscs_cholesky_factor():
+    """The envelope that chooses K's factorization: 2n - 1 for a tridiagonal matrix (any
+    numbering of a chain), and within a few per cent of the entries of PETSc's own Cholesky factor
+    in RCM order on a mesh (the orderings' start nodes may differ); a long strip's envelope per
+    DOF does not grow with its length, a square's does."""
+    from petsc4py import PETSc
+
+    from cfcontact.bench_stress import strip
+    from cfcontact.demo_models import build_blocks
+
+    n = 50
+    perm = np.random.default_rng(3).permutation(n)
+    T = sp.diags([np.full(n - 1, -1.0), np.full(n, 2.0), np.full(n - 1, -1.0)], [-1, 0, 1]).tocsr()
+    assert linalg.rcm_envelope(T[perm][:, perm]) == 2 * n - 1
+    system = build_blocks(0.3, nx=45, ny=15)
+    ksp = PETSc.KSP().create()
+    ksp.setOperators(system.K)
+    ksp.setType("preonly")
+    ksp.getPC().setType("cholesky")
+    ksp.getPC().setFactorOrdering("rcm")
+    ksp.setUp()
+    nz = ksp.getPC().getFactorMatrix().getInfo()["nz_used"]
+    env = linalg.rcm_envelope(linalg.local_csr(system.K))
+    assert abs(env - nz) <= 0.05 * nz, (env, nz)
+    ksp.destroy()
+    per_dof = [linalg.rcm_envelope(linalg.local_csr(s.K)) / s.n for s in (strip(100, 0.3), strip(400, 0.3))]
+    assert abs(per_dof[1] - per_dof[0]) <= 0.05 * per_dof[0] and per_dof[0] < condensed.NATIVE_ENVELOPE_PER_DOF
+    assert env / system.n > condensed.NATIVE_ENVELOPE_PER_DOF
 
 
 def test_schur_needs_interior_dofs_and_falls_back():
