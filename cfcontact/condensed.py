@@ -341,7 +341,7 @@ class CondensedSolver:
         #: no probe)
         self.refine_steps, self.solve_error, self._correction_rtol, self._probed = 0, None, None, False
         #: what the probe's refinement left (relative, in B x), and the refinement steps added once
-        #: branches are corrected against K while that is above POLISH_SOLVE_RTOL (see needs_true)
+        #: branches are corrected against K while that is above POLISH_SOLVE_RTOL (see against_K)
         self.refine_floor, self.polish_steps = None, 0
         #: rank of the correction that made S as accurate as refined solves (0: none needed), and
         #: what its check vectors left of S's error (relative; None: S not corrected)
@@ -381,7 +381,7 @@ class CondensedSolver:
         NATIVE_MAX_DOFS, or an RCM envelope of at most NATIVE_ENVELOPE_PER_DOF per DOF?"""
         if self.n <= NATIVE_MAX_DOFS:
             return True
-        return linalg.rcm_envelope(linalg.local_csr(self.system.K)) <= NATIVE_ENVELOPE_PER_DOF * self.n
+        return linalg.rcm_envelope(self.K_local) <= NATIVE_ENVELOPE_PER_DOF * self.n  # (K_local: kept)
 
     def _schur_accurate(self, S) -> bool:
         """Does S from the Schur complement agree with B K^-1 B^T applied by one solve with K, on a
@@ -771,11 +771,7 @@ class CondensedSolver:
         if not self.refine_steps or self.s_error is None:
             return False
         err = max(self.s_error, np.finfo(float).eps) * self.system.rho * np.abs(W[:, 0]).max(initial=0.0)
-        if not err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0):
-            return False
-        if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
-            self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
-        return True
+        return bool(err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0))
 
     def against_K(self, W, L, G, imposed, true, correction) -> tuple:
         """(L, G) of a branch (data W, multipliers L, indicators G, equation rows ``imposed``)
@@ -784,6 +780,8 @@ class CondensedSolver:
         column), L += correction(R, L) (the branch's own solve; at most POLISH_MAX_STEPS, and only
         while each halves the residual: below that it is rounding).  G then reads the free rows
         of B u from the last R, which belongs to the returned L: no product with S."""
+        if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
+            self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
         loads, gap = true
         if callable(loads):
             loads = loads()
@@ -1013,8 +1011,8 @@ class CondensedSolver:
         (3m x k), an estimate of their rounding error (with updates: the change of the last of their
         refinement steps, times its contraction).  ``true``: (loads, gap) of W's columns (see
         :meth:`true_rows`; loads may be a callable that returns them): where the data's rounding
-        can reach the multipliers (:meth:`needs_true`), a last correction solves the residual of the
-        branch's equations in B u from solves with K, not w - S lam (see POLISH_RTOL)."""
+        can reach the multipliers (:meth:`needs_true`), last corrections solve the residual of the
+        branch's equations in B u from solves with K, not w - S lam (:meth:`against_K`)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
@@ -1062,7 +1060,8 @@ class CondensedSolver:
         self.stats.dense_solves += (1 + steps) * c
         G = self._ind(L, W, SL, imposed)
         if true is not None and self.needs_true(W, G):  # the equations' residual from solves with K
-            L, G = self.against_K(W, L, G, imposed, true, lambda R, L: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
+            L, G = self.against_K(W, L, G, imposed, true,
+                                  lambda R, L: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
         if not refine:
             return L, G
         return L, G, np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
