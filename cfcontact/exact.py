@@ -59,7 +59,7 @@ import numpy as np
 
 from cfcontact.errors import ConvergenceError, InputError, SingularSystemError, StartInterrupted
 from cfcontact.jsonio import jsonable
-from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
+from cfcontact.options import ALPHA_LIMIT, TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
 from cfcontact.start import check_request, resume_parts, start_point
@@ -143,6 +143,9 @@ START_ENUMERATION_MAX_NODES = 8
 FORM_AT_END_LIMIT = 2 ** 28
 #: Transition cap of the homotopy start (independent of the path's max_transitions).
 HOMOTOPY_MAX_TRANSITIONS = 1000000
+#: How far below t = 0 the homotopy from the frictionless solution may go after a fold (it can
+#: turn again and reach t = 1); 0.0 gives up at its first return to t = 0.
+FRICTIONLESS_T_MIN = -ALPHA_LIMIT
 #: A path that ends "cycling" or "stuck" goes back to its latest branch point with an untried
 #: alternative and follows that one, at most this many times (see _backtrack).
 MAX_BACKTRACKS = 16
@@ -1585,7 +1588,7 @@ def _homotopy_start(ctx: _Context, alpha, monitor=None, n0=0) -> tuple:
 def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
     """Sets of a solution at alpha reached by the exact method from the frictionless solution, and
     the number of transitions it took; (None, transitions) when this start cannot be had: SSNM
-    does not converge on the frictionless problem, or the homotopy turns back to t = 0.
+    does not converge on the frictionless problem, or the homotopy does not reach t = 1.
 
     The frictionless problem (every F = 0) has one solution lam_f (S is positive definite), which
     SSNM finds where friction makes it wander.  With Z_f its closed nodes, the data w_0 = w(alpha)
@@ -1594,7 +1597,11 @@ def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
     needs |lam_t| = 0 <= F lam_n).  The homotopy (1 - t) w_0 + t w(alpha) moves only those
     tangential data; where friction holds most nodes it takes a few transitions (the all-open
     homotopy of :func:`_homotopy_start`, which always ends, can take thousands).  Unlike that one
-    it may turn back: the data at t < 0 can have several solutions."""
+    it may turn back (a fold: the data near t = 0 can have several solutions); the walk then goes
+    on through t < 0 -- the data (1 - t) w_0 + t w(alpha) are contact data there too -- where it can
+    turn again and reach t = 1 (the strip of 60 x 1 at F = 30 of the tests: one fold back at
+    t = 0.13, t = 1 after 100 transitions, where the all-open homotopy wanders for more than 10^5).
+    It fails when it leaves to t = FRICTIONLESS_T_MIN or ends otherwise."""
     m, solver = ctx.m, ctx.solver
     if not ctx.condensed or not (ctx.Fv > 0.0).any() or not hasattr(solver, "frictionless_solution"):
         return None, 0
@@ -1607,20 +1614,20 @@ def _frictionless_start(ctx: _Context, alpha, monitor=None) -> tuple:
     w0 = w.copy()
     w0[m + closed] = solver.S[m + closed] @ lam
     codes = _canon(ctx.system, sets_from_codes(np.where(~Z.nu, STICK, OPEN)))
-    return _homotopy(ctx, alpha, w0, w, codes, "frictionless", monitor)
+    return _homotopy(ctx, alpha, w0, w, codes, "frictionless", monitor, t_min=FRICTIONLESS_T_MIN)
 
 
-def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0) -> tuple:
+def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0, t_min=0.0) -> tuple:
     """(sets, transitions) of the exact method's walk in t from the solution of state ``codes`` of
-    the data w0 at t = 0 to the data w = w(alpha) at t = 1; sets = None when the walk does not reach
-    t = 1 (it turns back to t = 0, or ends otherwise), or the state is no solution at t = 0.
-    ``stage``: the name the monitor sees, with the transitions counted from ``n0`` (see
-    :func:`_homotopy_start`)."""
+    the data w0 at t = 0 to the data w = w(alpha) at t = 1, within t >= t_min; sets = None when the
+    walk does not reach t = 1 (it turns back to t_min, or ends otherwise), or the state is no
+    solution at t = 0.  ``stage``: the name the monitor sees, with the transitions counted from
+    ``n0`` (see :func:`_homotopy_start`)."""
     data = ctx.data
     # the path's own transition cap does not bound its start (the homotopy ends: each branch once)
     hopts = PathOptions.with_overrides(ctx.opts, alpha_min=None, alpha_max=None,
                                        max_transitions=max(int(ctx.opts.max_transitions), HOMOTOPY_MAX_TRANSITIONS))
-    hctx = _Context(ctx.system, ctx.solver, hopts, 0.0, 1.0, ctx.rtol, W=np.column_stack([w0, w]))
+    hctx = _Context(ctx.system, ctx.solver, hopts, t_min, 1.0, ctx.rtol, W=np.column_stack([w0, w]))
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
     ln = hctx.line(codes, 0.0)

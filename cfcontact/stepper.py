@@ -31,9 +31,10 @@ from cfcontact.errors import InputError
 class StartProgress:
     """What a run's ``monitor`` sees while the start is being reached, before the path has a point:
     ``stage`` (the exact method's start: "frictionless", its homotopy from the frictionless
-    solution, or "homotopy", from the all-open state, which follows when the first turns back),
-    the transitions traced so far (of both), the homotopy parameter ``t`` (0 to 1; the start is
-    reached at 1) and the seconds since the stage began.  The monitor's truthy answer abandons the run
+    solution, or "homotopy", from the all-open state, which follows when the first does not reach
+    t = 1), the transitions traced so far (of both), the homotopy parameter ``t`` (from 0; the
+    start is reached at 1; the frictionless homotopy can pass below 0 between folds) and the
+    seconds since the stage began.  The monitor's truthy answer abandons the run
     (:class:`~cfcontact.errors.StartInterrupted`)."""
 
     stage: str

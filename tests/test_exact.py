@@ -796,16 +796,20 @@ def test_frictionless_start_is_a_solution_and_starts_the_same_path():
 
 
 @pytest.mark.parametrize("seed, how", [(213, "frictionless"), (103, "homotopy")])
-def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how):
+def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how, monkeypatch):
     """Lumped models at F = 30 where SSNM fails from every restart of start_point with the full
     backend.  The seed method and the exact method on the full PETSc backend raised
     ConvergenceError (the homotopy start was the condensed backend's alone); now both start from
     the solution the exact method reaches in the condensed multipliers, and give the condensed
-    run's path."""
+    run's path.  Model 103's homotopy from the frictionless solution folds back to t = 0; confined
+    to t >= 0 it gives up there, and the all-open homotopy starts the path."""
+    import cfcontact.exact as ex
     from cfcontact.errors import ConvergenceError
     from cfcontact.ssnm import get_solver
     from cfcontact.start import start_point
 
+    if how == "homotopy":
+        monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
     system = random_system(6, seed, friction=30.0)
     with pytest.raises(ConvergenceError):
         start_point(system, 0.0, None, cfcontact.PathOptions(), get_solver(system))
@@ -844,13 +848,40 @@ def test_homotopy_start_is_not_bounded_by_the_path_cap():
     assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-8
 
 
-def test_monitor_sees_and_can_abandon_a_homotopy_start():
+def test_frictionless_homotopy_goes_on_through_its_folds_below_t_0(monkeypatch):
+    """A slender strip (60 x 1, m = 150) at F = 30: SSNM cycles, and the homotopy from the
+    frictionless solution folds back to t = 0 after one transition.  It goes on below t = 0,
+    turns again and reaches t = 1 (the monitor sees t < 0; 100 transitions here); the start point
+    verifies, and the path from it completes.  Confined to t >= 0 the frictionless homotopy gives
+    up at t = 0 and the all-open homotopy follows (it wanders for more than 10^5 transitions on
+    this strip: abandoned here by the monitor as soon as it begins)."""
+    import cfcontact.exact as ex
+    from test_accuracy import slender
+
+    system = slender(30.0)
+    seen = []
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", monitor=seen.append)
+    assert path.status == "completed" and path.stats["start"] == "frictionless"
+    assert {p.stage for p in seen} == {"frictionless"} and min(p.t for p in seen) < 0.0 and seen[-1].t == 1.0
+    assert path.stats["homotopy_transitions"] == seen[-1].transitions > 1
+    assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-9
+    monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
+    seen.clear()
+    with pytest.raises(cfcontact.StartInterrupted):
+        cfcontact.trace_path(system, 0.0, 1.0, method="exact", monitor=lambda p: seen.append(p) or p.stage == "homotopy")
+    assert min(p.t for p in seen) == 0.0 and seen[-1].stage == "homotopy"
+
+
+def test_monitor_sees_and_can_abandon_a_homotopy_start(monkeypatch):
     """A lumped model whose SSNM start does not converge at F = 30, and whose homotopy from the
-    frictionless solution turns back to t = 0 after one transition: the start is reached from
-    the all-open state.  The monitor sees every transition of both homotopies (each from t = 0,
-    counts rising over both); a monitor that never answers True leaves the path as it is without
-    one; a truthy answer abandons the run with StartInterrupted carrying the last progress.  A
-    path whose SSNM start converges never calls the monitor."""
+    frictionless solution, confined to t >= 0, turns back to t = 0 after one transition: the
+    start is reached from the all-open state.  The monitor sees every transition of both
+    homotopies (each from t = 0, counts rising over both); a monitor that never answers True
+    leaves the path as it is without one; a truthy answer abandons the run with StartInterrupted
+    carrying the last progress.  A path whose SSNM start converges never calls the monitor."""
+    import cfcontact.exact as ex
+
+    monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
     system = random_system(6, 103, friction=30.0)
     ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
     assert ref.stats["start"] == "homotopy" and ref.stats["homotopy_transitions"] >= 3
