@@ -204,6 +204,21 @@ def _rows_t_times(At, rows, X):
     return _times(At[rows].T, X)
 
 
+def frictionless_nnls(S_nn: np.ndarray, w_n: np.ndarray) -> Optional[np.ndarray]:
+    """lam_n of the frictionless problem in the condensed form -- lam_n >= 0, S_nn lam_n - w_n >= 0
+    (the normal gaps of B u = w - S lam), complementary -- as the QP min 1/2 lam^T S_nn lam - w_n^T
+    lam over lam >= 0, i.e. the non-negative least-squares problem min |R lam - R^-T w_n| with
+    S_nn = R^T R (Lawson and Hanson's active-set method: finite, where SSNM can cycle); None when
+    S_nn is not positive definite."""
+    from scipy.optimize import nnls
+
+    try:
+        R = sla.cholesky(S_nn)
+    except np.linalg.LinAlgError:
+        return None
+    return nnls(R, sla.solve_triangular(R, w_n, trans="T"))[0]
+
+
 def _lu_solve(lu, piv, B, trans=0):
     """getrs(lu, piv, B) (``trans``: with the transpose): for two columns and the transpose from
     COLUMNWISE_MIN_ROWS rows on by the compiled kernel that reads the factor once for both
@@ -1150,10 +1165,20 @@ class CondensedSolver:
         positive definite), the start of the exact method's frictionless homotopy."""
         m = self.m
         saved = self.F, self._F0, self._lu
+        none = np.zeros(m, bool)
         try:
             self.F, self._F0, self._lu = np.zeros(m), np.ones(m, dtype=bool), OrderedDict()
-            Z0 = InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
-            lam, Z, _, converged = self._ssnm_lam(w, Z0, np.zeros(2 * m), tol, max_iter)
+            lam, Z, _, converged = self._ssnm_lam(w, InactiveSets(none, none, none), np.zeros(2 * m), tol, max_iter)
+            if not converged:
+                # SSNM can cycle here too: the problem is a convex QP, whose active-set solution
+                # (finite) gives SSNM the sets it then confirms
+                lam_n = frictionless_nnls(self.S[:m, :m], w[:m])
+                if lam_n is not None:
+                    log.info("SSNM on the frictionless problem did not converge; its solution comes from "
+                             "non-negative least squares (%d of %d nodes closed)", int((lam_n > 0).sum()), m)
+                    lam0 = np.concatenate([lam_n, np.zeros(m)])
+                    lam, Z, _, converged = self._ssnm_lam(w, InactiveSets(lam_n <= 0.0, none, none), lam0, tol,
+                                                          max_iter)
         finally:
             self.F, self._F0, self._lu = saved
         return (lam, Z) if converged else None

@@ -15,6 +15,7 @@ logic are re-exported here for code written against the single ``path`` module.
 
 from __future__ import annotations
 
+import os
 from typing import Callable, Optional
 
 from cfcontact.errors import InputError
@@ -34,21 +35,49 @@ from cfcontact.start import START_RHO_FACTORS, branch_endpoints, check_request, 
 from cfcontact.stepper import check_monitor
 from cfcontact.system import ContactSystem
 
-__all__ = ["trace_path", "path_stepper", "select_solver", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
+__all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
            "PathOptions", "AlphaSpan", "SolutionPath", "Branch", "Transition", "PathEvent", "PathPoint",
            "SET_NAMES", "FORMAT_VERSION", "BATCH_LIMIT", "START_RHO_FACTORS", "start_point", "branch_endpoints",
            "resume_parts"]
 
 #: ``backend="auto"`` uses the condensed solver for the exact method up to this many contact
-#: nodes (its dense matrices are (2m)^2: 128 MB at m = 2000).
+#: nodes on any machine (its dense matrices are (2m)^2: 128 MB at m = 2000), ...
 CONDENSED_MAX_M = 2000
+#: ... and beyond that while CONDENSED_BYTES_PER_ENTRY bytes per entry of (2m)^2 -- S, the kept
+#: factorization of the branches' systems with its updates, the dense LU cache -- fit in
+#: CONDENSED_MEMORY_SHARE of the machine's memory (benchmark Part C: the m = 4000 strips peak at
+#: 2.7-4.1 GiB in all, 43-69 bytes per entry; on 24 GiB this admits m <= 7100).  The full
+#: backend refactors J(Z) per branch: 3x the time per transition at m = 4000.
+CONDENSED_BYTES_PER_ENTRY = 64
+CONDENSED_MEMORY_SHARE = 0.5
+
+
+def machine_memory() -> Optional[int]:
+    """Bytes of physical memory (None where the system does not say)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def auto_backend(method: str, m: int, memory: Optional[int] = None) -> str:
+    """The backend ``backend="auto"`` picks for ``method`` on a system of m contact nodes, on a
+    machine with ``memory`` bytes (default: :func:`machine_memory`): "condensed" for the exact
+    method while its dense data fit (CONDENSED_MAX_M, CONDENSED_BYTES_PER_ENTRY), else "full"."""
+    if method != "exact":
+        return "full"
+    if m <= CONDENSED_MAX_M:
+        return "condensed"
+    memory = machine_memory() if memory is None else memory
+    fits = memory is not None and CONDENSED_BYTES_PER_ENTRY * (2.0 * m) ** 2 <= CONDENSED_MEMORY_SHARE * memory
+    return "condensed" if fits else "full"
 
 
 def select_solver(system: ContactSystem, method: str = "exact", backend: str = "auto"):
     """The system's cached DirNeu backend for ``method`` (see :func:`trace_path`'s ``backend``)."""
     check_backend(backend)
     if backend == "auto":
-        backend = "condensed" if method == "exact" and system.m <= CONDENSED_MAX_M else "full"
+        backend = auto_backend(method, system.m)
     if backend == "condensed":
         from cfcontact.condensed import get_condensed_solver
 
@@ -90,7 +119,8 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     backend : "full" (PETSc :class:`~cfcontact.ssnm.DirNeuSolver`: one factorization of J(Z) per
         branch), "condensed" (:class:`~cfcontact.condensed.CondensedSolver`: K factored once,
         dense systems in the contact unknowns) or "auto" (default: condensed for the exact method
-        when m <= CONDENSED_MAX_M, full otherwise; the seed method uses full, as in [JL-PF])
+        while its dense data fit the machine's memory, :func:`auto_backend`, full otherwise; the
+        seed method uses full, as in [JL-PF])
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``,
         ``tie_rtol=1e-9``)

@@ -467,6 +467,22 @@ def test_backend_selection():
         cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="dense")
 
 
+def test_auto_backend_is_condensed_while_its_dense_data_fit_the_memory():
+    """Up to m = 2000 the exact method's auto backend is the condensed one on any machine; beyond,
+    while 64 bytes per entry of (2m)^2 fit in half the memory (m = 7100 on 24 GiB); the seed
+    method's is the full one."""
+    from cfcontact.path import auto_backend, machine_memory
+
+    GiB = 2 ** 30
+    assert auto_backend("exact", 2000, memory=GiB) == "condensed"
+    assert auto_backend("exact", 4000, memory=24 * GiB) == "condensed"
+    assert auto_backend("exact", 7000, memory=24 * GiB) == "condensed"
+    assert auto_backend("exact", 7200, memory=24 * GiB) == "full"
+    assert auto_backend("exact", 4000, memory=4 * GiB) == "full"
+    assert auto_backend("seed", 30, memory=24 * GiB) == "full"
+    assert machine_memory() > GiB
+
+
 def test_exact_with_condensed_backend_one_factorization():
     for seed in range(3):
         system = random_system(5, seed, friction=1.0)
@@ -846,6 +862,46 @@ def test_homotopy_start_is_not_bounded_by_the_path_cap():
     assert path.stats["start"] == "frictionless" and path.stats["homotopy_transitions"] > 5
     a, y = next(iter(path.iter_points(indices=[0])))
     assert a == 0.0 and cfcontact.verify(system, y, 0.0).worst() < 1e-8
+
+
+def test_frictionless_nnls_solves_the_frictionless_problem():
+    """The frictionless problem's QP by non-negative least squares satisfies its complementarity
+    conditions (they determine the solution: S_nn is positive definite); it answers None for a
+    matrix that is not positive definite."""
+    from cfcontact.condensed import frictionless_nnls
+
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((40, 40))
+    S = A @ A.T + 0.1 * np.eye(40)
+    w = rng.standard_normal(40)
+    lam = frictionless_nnls(S, w)
+    gap = S @ lam - w
+    scale = np.abs(S).max() * np.abs(lam).max()
+    assert lam.min() >= 0.0 and gap.min() > -1e-12 * scale and np.abs(lam * gap).max() < 1e-12 * scale
+    assert 5 < (lam > 0).sum() < 35
+    assert frictionless_nnls(-S, w) is None
+
+
+def test_frictionless_start_where_ssnm_cycles_on_the_frictionless_problem(monkeypatch):
+    """A random load on the main demo at F = 30 where SSNM cycles both on the problem and on the
+    frictionless problem: the frictionless solution comes from non-negative least squares (SSNM
+    confirms its sets), and the path starts from it."""
+    import cfcontact.condensed as cd
+    from cfcontact.demo_models import build_demo
+
+    base = build_demo(30.0)
+    f1, f2 = base.loads_numpy()
+    scale = max(np.abs(f1).max(), np.abs(f2).max())
+    rng = np.random.default_rng(1049)  # (Part D's random load paths, number 49)
+    g = [rng.uniform(-1, 1) * f1 + rng.uniform(-1, 1) * f2
+         + 0.2 * scale * rng.standard_normal(base.n) * (rng.random(base.n) < 0.05) for _ in range(2)]
+    system = base.with_loads(*g)
+    calls = []
+    nnls = cd.frictionless_nnls
+    monkeypatch.setattr(cd, "frictionless_nnls", lambda S, w: calls.append(1) or nnls(S, w))
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert calls and path.status == "completed" and path.stats["start"] == "frictionless"
+    assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-10
 
 
 def test_frictionless_homotopy_goes_on_through_its_folds_below_t_0(monkeypatch):
