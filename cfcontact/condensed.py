@@ -93,13 +93,13 @@ SCHUR_CHECK_RTOL = 1e-11
 #: times the rounding unit, which only a more precise residual removes (x87 extended precision
 #: leaves 1.5e-13, which the path's points show as violations of 1e-9).  Below this threshold
 #: (the seed-sized models: 6e-12 and 9e-12) the solves are accurate enough and refinement is not
-#: worth its set-up cost.  Between 2e-11 and 1e-10 it can go either way: Part B's n = 1.2e5
-#: blocks (probe 7.7e-11) leave points 1.1e-9 from (1)-(3) unrefined and 1.8e-12 refined, but the
-#: m = 500 strip at F = 30 (probe 4.7e-11; 5.8e-11 on Debian 13) measured 6.8e-10 unrefined and
-#: 1.7e-9 (2.2e-9 on Debian 13) refined: its unrefined u shares the rounding of its unrefined S,
-#: which hides S's error, while refined u shows what is left of it after the correction.  So
-#: refinement stays for the solves that are clearly off; SolverOptions(refine=True) forces it.
-REFINE_RTOL = 1e-10
+#: worth its set-up cost.  Between 2e-11 and 1e-10 unrefined solves leave points beyond 1e-9:
+#: Part B's n = 1.2e5 blocks (probe 7.7e-11) 1.1e-9 unrefined, 1.8e-12 refined; the m = 500 strip
+#: with random loads at F = 30 (probe 4.7e-11) 2.3e-9 unrefined, and refined 2.3e-10 -- with its
+#: branches corrected against K (POLISH_RTOL, 24 of 169): refined u shows what is left of S's
+#: error after its correction, which unrefined u, sharing S's rounding, hides (refined without
+#: that correction it measured 1.7e-9).  SolverOptions(refine=True) forces refinement.
+REFINE_RTOL = 2e-11
 #: Refinement steps are taken until a correction is below this (relative, in B x) or stops
 #: shrinking tenfold, at most REFINE_MAX_STEPS; a probe that still needs more (K too
 #: ill-conditioned for refinement to contract) is logged as a warning.
