@@ -114,8 +114,9 @@ REFINE_MAX_STEPS = 3
 #: its correction) left closed nodes 2.8e-9 (relative) from their gap.  The correction -- the
 #: equations' residual read from B u with u = K^-1 (f - B^T lam) by refined solves, solved with the
 #: branch's factorization -- brings them to the rounding of u.  Two solves with K per branch (and
-#: one per refinement step); the seed-sized models, the blocks of Part B and strips up to m = 500
-#: never need it (only refined models are considered: unrefined, u shares S's rounding).
+#: one per refinement step); the seed-sized models and strips up to m = 200 never need it, the
+#: m = 500 strips at F = 30 in some branches (only refined models are considered: unrefined, u
+#: shares S's rounding).
 POLISH_RTOL = 1e-10
 #: At most this many corrections per branch (each: one solve with the branch's factorization, two
 #: with K); they stop when the equations' residual is within POLISH_RTOL of the indicators.
@@ -361,6 +362,9 @@ class CondensedSolver:
         #: rank of the correction that made S as accurate as refined solves (0: none needed), and
         #: what its check vectors left of S's error (relative; None: S not corrected)
         self.correction_rank, self.s_error = 0, None
+        self._s_colmax = None  # max_i |S_ij| (needs_true)
+        #: every branch of the exact method is corrected against K (see needs_true)
+        self.true_always = False
         if S is not None:
             self._probe_refinement()
             if self.refine_steps:
@@ -778,14 +782,29 @@ class CondensedSolver:
         return S
 
     # ---------------------------------------------------------------- loads
-    def needs_true(self, W: np.ndarray, G: np.ndarray) -> bool:
+    def needs_true(self, W: np.ndarray, G: np.ndarray, L: Optional[np.ndarray] = None) -> bool:
         """Can the rounding of a branch's data reach POLISH_RTOL of its indicators G[:, 0] (the
         multipliers and rho B u)?  S's error after its correction (or the rounding unit), times
-        rho |w| (W's first column).  Only with refined solves (``refine_steps``): unrefined, u
-        shares S's rounding and is formed as consistently as S (see REFINE_RTOL)."""
+        rho times the larger of |w| (W's first column) and the bound sum_j max_i |S_ij| |L_j| of
+        the terms of S L (multipliers of both signs cancel in S L: at F = 30 the slip forces, 30
+        times the normal ones, made S L much smaller than its terms, and the m = 2000 strip's
+        branches beyond its 2470th transition fell under the |w| estimate with points 1.6e-9 off).
+        Only with refined solves (``refine_steps``): unrefined, u shares S's rounding and is
+        formed as consistently as S (see REFINE_RTOL).  Once a correction has found a branch's
+        equations off by more than POLISH_RTOL (``true_always``), every branch is corrected: the
+        estimate is a bound of sizes, not of the error's direction (with it alone, 11 of the
+        strip's first 2609 branches went uncorrected, 4 of 225 points there above 1e-9; with
+        every branch corrected none, at the same cost)."""
         if not self.refine_steps or self.s_error is None:
             return False
-        err = max(self.s_error, np.finfo(float).eps) * self.system.rho * np.abs(W[:, 0]).max(initial=0.0)
+        if self.true_always:
+            return True
+        size = np.abs(W[:, 0]).max(initial=0.0)
+        if L is not None:
+            if self._s_colmax is None:
+                self._s_colmax = np.abs(self.S).max(axis=0)
+            size = max(size, float(self._s_colmax @ np.abs(L[:, 0])))
+        err = max(self.s_error, np.finfo(float).eps) * self.system.rho * size
         return bool(err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0))
 
     def against_K(self, W, L, G, imposed, true, correction) -> tuple:
@@ -808,6 +827,10 @@ class CondensedSolver:
 
         R, res = measure(L)
         scale = POLISH_RTOL * np.abs(G).max(axis=0, initial=0.0)
+        if (res > scale).any() and not self.true_always:
+            self.true_always = True
+            log.info("a branch's equations are off by %.1e of its indicators in solves with K: from now on every "
+                     "branch is corrected against K", float((res / np.maximum(scale / POLISH_RTOL, 1e-300)).max()))
         for _ in range(POLISH_MAX_STEPS):
             if (res <= scale).all():
                 break
@@ -1074,7 +1097,7 @@ class CondensedSolver:
             SL = SL + SD
         self.stats.dense_solves += (1 + steps) * c
         G = self._ind(L, W, SL, imposed)
-        if true is not None and self.needs_true(W, G):  # the equations' residual from solves with K
+        if true is not None and self.needs_true(W, G, L):  # the equations' residual from solves with K
             L, G = self.against_K(W, L, G, imposed, true,
                                   lambda R, L: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
         if not refine:
@@ -1865,7 +1888,7 @@ class _Updater:
         s.stats.dense_updates += 1
         self.updates += 1
         G = s._ind(L, W, SL, imposed)
-        if true is not None and s.needs_true(W, G):  # the equations' residual from solves with K
+        if true is not None and s.needs_true(W, G, L):  # the equations' residual from solves with K
             L, G = s.against_K(W, L, G, imposed, true,
                                lambda R, L: solve(_scaled_residual(types, W, L, W - R, self.rho)))
         if not refine:

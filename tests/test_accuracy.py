@@ -239,6 +239,7 @@ def test_branches_are_corrected_against_K_where_S_error_reaches_their_multiplier
             verify(strip, np.concatenate([u_true(strip.load(a) - solver.B.T @ y[n:]), y[n:]]), a, solver=solver).worst()
             for a, y in path.iter_points())
         counts[rtol] = solver.stats.true_corrections
+        assert solver.true_always == (rtol < np.inf)  # (the first correction found S's error)
     assert counts[np.inf] == 0 and counts[condensed.POLISH_RTOL] >= len(changes)
     assert worst[np.inf] > 1e-8 and worst[condensed.POLISH_RTOL] < 1e-11, worst  # 2.0e-7 and 4.6e-12
 
@@ -256,3 +257,23 @@ def test_strip_with_random_loads_at_F_30_verifies_to_1e_9_at_every_point():
     assert path.status == "completed" and len(path.transitions) > 100
     assert solver.refine_steps >= 1 and solver.stats.true_corrections > 0
     assert worst_residual(system, path, solver) < 1e-9
+
+
+def test_needs_true_bounds_the_terms_of_S_lam_not_only_w(strip):
+    """A branch's rounding estimate takes the terms of S lam: multipliers of both signs (slip
+    forces at F = 30) cancel in S lam, so |w| alone can be far below what S's error does to it."""
+    solver = CondensedSolver(strip, SolverOptions(refine=True))
+    assert solver.refine_steps >= 1 and solver.s_error is not None
+    m2, rho = 2 * strip.m, strip.rho
+    err = max(solver.s_error, np.finfo(float).eps) * rho
+    W = np.zeros((m2, 2))
+    W[0, 0] = 1.0
+    G = np.zeros((3 * strip.m, 2))
+    G[0, 0] = 10.0 * err / condensed.POLISH_RTOL  # |w| alone: 10 times below the threshold
+    colmax = np.abs(solver.S).max(axis=0)
+    L = np.zeros((m2, 2))
+    L[[3, strip.m + 3], 0] = 50.0 / colmax[[3, strip.m + 3]]  # terms of S L: 100
+    assert not solver.needs_true(W, G) and not solver.needs_true(W, G, np.zeros_like(L))
+    assert solver.needs_true(W, G, L)
+    solver.true_always = True  # (a correction found a branch off: every branch from then on)
+    assert solver.needs_true(W, G)
