@@ -292,7 +292,7 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
                branches=len(path.branches), points=len(path.alphas), K_factorizations=st["factorizations"],
                linear_solves=st["linear_solves"], linear_solves_path=st["linear_solves"] - solves0,
                dense_factorizations=st["dense_factorizations"], dense_solves=st["dense_solves"],
-               dense_updates=st.get("dense_updates", 0),
+               dense_updates=st.get("dense_updates", 0), true_corrections=st.get("true_corrections", 0),
                profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify",
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message} for e in path.events][:20])
     dump()

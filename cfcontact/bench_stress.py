@@ -176,7 +176,7 @@ def _measure_path(spec, res, system, solver, path, branch_times, dump):
                time_per_transition=(t_path - t_start) / max(1, len(path.transitions)),
                path_time_per_transition=t_path / max(1, len(path.transitions)),
                dense_updates=st["dense_updates"], refactorizations=st["dense_factorizations"],
-               start=path.stats.get("start"), homotopy_transitions=path.stats.get("homotopy_transitions", 0),
+               true_corrections=st.get("true_corrections", 0), start=path.stats.get("start"), homotopy_transitions=path.stats.get("homotopy_transitions", 0),
                degenerate_points=path.stats.get("degenerate_points", 0),
                max_vanishing=path.stats.get("max_vanishing", 0), branch_points=path.stats.get("branch_points", 0),
                backtracks=path.stats.get("backtracks", 0),

@@ -130,6 +130,7 @@ def test_bench_parts_c_and_d_quick(tmp_path):
     for r in c["rows"]:
         assert r["status"] == "completed" and r["transitions"] > 20, r
         assert r["dense_updates"] > r["refactorizations"] and r["worst_residual"] < 1e-9, r
+        assert 0 <= r["true_corrections"] <= r["dense_updates"] + r["refactorizations"]
         assert r["peak_rss_gib"] > 0 and r["time_per_transition"] > 0
         # the start's time is part of the path's, not of its transitions'
         assert 0 < r["start_time"] < r["path_time"]
