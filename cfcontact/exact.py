@@ -1638,12 +1638,21 @@ def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0, t_m
     walk.parameter, walk.log_level = "homotopy t", logging.DEBUG
     t0 = time.perf_counter()
     seen = []
+    kept = [0]
 
     def watch(point):
+        # only the walk's current branch and the one before are read again: the others' values go
+        # (a homotopy can take 10^5 transitions, 10 m doubles each)
+        for b in range(kept[0], point.branch - 1):
+            for store in (path._lam, path._ind, path._pending):
+                store.pop(b, None)
+        kept[0] = max(kept[0], point.branch - 1)
+        if monitor is None:
+            return False
         seen[:] = [StartProgress(stage, n0 + len(path.transitions), float(point.alpha), time.perf_counter() - t0)]
         return monitor(seen[0])
 
-    status = walk.run(watch if monitor is not None else None)
+    status = walk.run(watch)
     if status == "stopped by callback":
         prog = seen[0]
         raise StartInterrupted(f"the start at alpha={alpha:g} was abandoned by the monitor after {prog.transitions} "

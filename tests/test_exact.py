@@ -928,6 +928,23 @@ def test_frictionless_homotopy_goes_on_through_its_folds_below_t_0(monkeypatch):
     assert min(p.t for p in seen) == 0.0 and seen[-1].stage == "homotopy"
 
 
+def test_homotopy_start_keeps_only_its_last_branches_values(monkeypatch):
+    """A homotopy start can take 10^5 transitions: its walk keeps the values (multipliers,
+    indicators) of its current branch and the one before only, and reaches the same start."""
+    import cfcontact.exact as ex
+
+    system = random_system(6, 213, friction=30.0)
+    ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
+    walks = []
+    run = ex._Walk.run
+    monkeypatch.setattr(ex._Walk, "run", lambda self, cb=None: walks.append(self) or run(self, cb))
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
+    assert path.stats["start"] == "frictionless" and path.stats["homotopy_transitions"] >= 3
+    hpath = walks[0].path
+    assert len(hpath.branches) > 3 and set(hpath._lam) <= {len(hpath.branches) - 2, len(hpath.branches) - 1}
+    assert [t.alpha for t in path.transitions] == [t.alpha for t in ref.transitions]
+
+
 def test_monitor_sees_and_can_abandon_a_homotopy_start(monkeypatch):
     """A lumped model whose SSNM start does not converge at F = 30, and whose homotopy from the
     frictionless solution, confined to t >= 0, turns back to t = 0 after one transition: the
