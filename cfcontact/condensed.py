@@ -830,11 +830,12 @@ class CondensedSolver:
             return R, rho * np.abs(R[imposed]).max(axis=0, initial=0.0)
 
         R, res = measure(L)
-        scale = POLISH_RTOL * np.abs(G).max(axis=0, initial=0.0)
+        size = np.abs(G).max(axis=0, initial=0.0)
+        scale = POLISH_RTOL * size
         if (res > scale).any() and not self.true_always:
             self.true_always = True
             log.info("a branch's equations are off by %.1e of its indicators in solves with K: from now on every "
-                     "branch is corrected against K", float((res / np.maximum(scale / POLISH_RTOL, 1e-300)).max()))
+                     "branch is corrected against K", float((res / np.maximum(size, 1e-300)).max()))
         for _ in range(POLISH_MAX_STEPS):
             if (res <= scale).all():
                 break

@@ -1644,8 +1644,7 @@ def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0, t_m
         # only the walk's current branch and the one before are read again: the others' values go
         # (a homotopy can take 10^5 transitions, 10 m doubles each)
         for b in range(kept[0], point.branch - 1):
-            for store in (path._lam, path._ind, path._pending):
-                store.pop(b, None)
+            path.drop_branch_values(b)
         kept[0] = max(kept[0], point.branch - 1)
         if monitor is None:
             return False

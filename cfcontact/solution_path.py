@@ -339,6 +339,14 @@ class SolutionPath:
         if indicators is not None and b in self._ind and self._ind[b][0] == a_r:
             self._ind[b] = (a_r, np.array(indicators, dtype=float), self._ind[b][2])
 
+    def drop_branch_values(self, branch) -> None:
+        """Forget a lazy branch's values (multipliers, indicators, the backend that forms its u):
+        for a walk that reads only its last branches and keeps no points of the others (the exact
+        method's homotopy starts)."""
+        b = branch.index if isinstance(branch, Branch) else int(branch)
+        for store in (self._lam, self._ind, self._pending):
+            store.pop(b, None)
+
     def add_point(self, branch: Branch, alpha, y=None) -> int:
         """Append a point; y=None: the point of ``branch`` at alpha (formed lazily on a lazy branch)."""
         if y is None and branch.index not in self._Y:
