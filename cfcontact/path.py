@@ -64,6 +64,7 @@ def auto_backend(method: str, m: int, memory: Optional[int] = None) -> str:
     """The backend ``backend="auto"`` picks for ``method`` on a system of m contact nodes, on a
     machine with ``memory`` bytes (default: :func:`machine_memory`): "condensed" for the exact
     method while its dense data fit (CONDENSED_MAX_M, CONDENSED_BYTES_PER_ENTRY), else "full"."""
+    check_method(method)
     if method != "exact":
         return "full"
     if m <= CONDENSED_MAX_M:

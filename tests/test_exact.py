@@ -481,6 +481,8 @@ def test_auto_backend_is_condensed_while_its_dense_data_fit_the_memory():
     assert auto_backend("exact", 4000, memory=4 * GiB) == "full"
     assert auto_backend("seed", 30, memory=24 * GiB) == "full"
     assert machine_memory() > GiB
+    with pytest.raises(cfcontact.InputError, match="unknown method 'newton'; valid: 'seed', 'exact'"):
+        auto_backend("newton", 30)
 
 
 def test_exact_with_condensed_backend_one_factorization():
