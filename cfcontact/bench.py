@@ -448,6 +448,9 @@ def add_arguments(ap):
     ap.add_argument("--time-limit", type=float, default=600.0,
                     help="Parts C and D: tracing time limit of one row [s] (default 600)")
     ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
+    ap.add_argument("--seed-check", type=float,
+                    help="Part D: also trace each random load path by the seed method, at most this many seconds "
+                         "each, and compare their set changes (default 60; --quick: 0; 0: off)")
     ap.add_argument("--repeat", type=int, help="Part A: run each method at least this many times and report the "
                                                "fastest (default 3; --quick: 1)")
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "
@@ -506,6 +509,9 @@ def run(args, argv_text="") -> int:
             raise InputError(f"--contact-nodes must be comma-separated integers, got {args.contact_nodes!r}") from None
         if any(v < 4 for v in strip_m):
             raise InputError(f"--contact-nodes must be node counts >= 4, got {args.contact_nodes!r}")
+    seed_check = getattr(args, "seed_check", None)
+    if seed_check is not None and not (0 <= seed_check < math.inf):
+        raise InputError(f"--seed-check must be a number of seconds >= 0 (0: off), got {seed_check}")
     repeat = getattr(args, "repeat", None)
     repeat = repeat if repeat is not None else (1 if args.quick else 3)
     if repeat < 1:
@@ -567,7 +573,8 @@ def run(args, argv_text="") -> int:
                   flush=True)
         if "D" in part:
             print("Part D: hard cases of the exact method", flush=True)
-            result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m)
+            result["part_d"] = bs.part_d(quick=args.quick, paths=paths, time_limit=time_limit, sizes=strip_m,
+                                         seed_limit=seed_check)
             save()
             print(bs.table(result["part_d"]["rows"]), flush=True)
             for name, rl in result["part_d"]["random_loads"].items():

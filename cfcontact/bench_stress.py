@@ -50,6 +50,12 @@ D_SIZES = (500, 1000, 2000)
 QUICK_D_SIZES = (100,)
 D_PATHS = 200
 QUICK_D_PATHS = 10
+#: Part D: each random load path is traced by the seed method too, at most this many seconds
+#: (0: not at all), and compared with the exact path where the seed method completes; where the
+#: two differ, the seed method is run again with its smallest step h_min divided by 10, 100, ...
+#: (SEED_FINER_STEPS times) to see whether it agrees once it resolves the transitions.
+SEED_CHECK_LIMIT = 60.0
+SEED_FINER_STEPS = 2
 #: Worst residual over at most this many evenly spaced stored points of a row.
 VERIFY_POINTS = 60
 TRACTION = 1e7  # Pa: size of the random uniform tractions of the strips
@@ -199,6 +205,11 @@ def _measure_path(spec, res, system, solver, path, branch_times, dump):
     t0 = time.perf_counter()
     res["worst_residual"] = _verify_sample(system, path, solver)
     res["verify_time"] = time.perf_counter() - t0
+    if spec.get("seed_check") and path.status == "completed":
+        res["stage"] = "seed method"
+        dump()
+        res.update(_seed_check(lambda: system.with_loads(system.f1, system.f2), path, spec["friction"],
+                               float(spec["seed_check"])))
 
 
 def _branch_times(system, solver) -> list:
@@ -278,7 +289,16 @@ def _row_text(r):
             f"{f('path_time')} {f('start_time', 6)} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
             f"{r.get('dense_updates', '-'):>7} {r.get('refactorizations', '-'):>6} {f('peak_rss_gib', 6)} "
             f"{r.get('worst_residual') if isinstance(r.get('worst_residual'), float) else float('nan'):>9.1e} "
-            f"{f('ratio', 6, 1)} {_status_text(r):>11}")
+            f"{f('ratio', 6, 1)} {_status_text(r):>11} {_seed_text(r):>10}")
+
+
+def _seed_text(r) -> str:
+    """The seed method's run of a row: the same states as the exact path, where they differ, or its status."""
+    if "seed_status" not in r:
+        return "-"
+    if r["seed_status"] != "completed":
+        return r["seed_status"][:10]
+    return "same" if r["seed_same"] else f"differs@{r['seed_first_difference']}"
 
 
 def _status_text(r) -> str:
@@ -289,7 +309,7 @@ def _status_text(r) -> str:
 def table(rows) -> str:
     head = (f"{'model':>8} {'loads':>7} {'n':>7} {'m':>5} {'F':>5} {'assembly':>8} {'factor':>8} {'condense':>8} "
             f"{'path':>8} {'start':>6} {'trans.':>7} {'s/trans.':>9} {'updates':>7} {'refact':>6} {'GiB':>6} {'residual':>9} "
-            f"{'ratio':>6} {'status':>11}")
+            f"{'ratio':>6} {'status':>11} {'seed':>10}")
     return "\n".join([head, "-" * len(head)] + [_row_text(r) for r in rows])
 
 
@@ -320,9 +340,10 @@ def part_c(quick=False, time_limit=600.0, log=print, sizes=None) -> dict:
     return {"rows": rows, "slope": slope(rows), "slope_with_start": slope(rows, "path_time_per_transition")}
 
 
-def _random_loads(build, friction, paths, seed0, log):
+def _random_loads(build, friction, paths, seed0, log, seed_limit=0.0):
     """``paths`` random load paths on a demo model: f1, f2 random combinations of the model's own
-    loads and of unit tractions on its edges (the same kinds of terms, random sizes)."""
+    loads and of unit tractions on its edges (the same kinds of terms, random sizes).  With
+    ``seed_limit`` > 0 each path is traced by the seed method too (:func:`_seed_check`)."""
     import cfcontact
     from cfcontact.path import select_solver
 
@@ -357,7 +378,67 @@ def _random_loads(build, friction, paths, seed0, log):
                                          solver=select_solver(again, "exact"))
             rec["time_given_start"] = time.perf_counter() - t0
             rec["same_path"] = [t.alpha for t in same.transitions] == [t.alpha for t in path.transitions]
+        if seed_limit > 0 and rec["status"] != "start failure":
+            rec.update(_seed_check(lambda: base.with_loads(g1, g2), path, friction, seed_limit))
         out.append(rec)
+    return out
+
+
+def _seed_check(make_system, exact_path, friction, limit) -> dict:
+    """Trace the path of ``make_system()`` by the seed method (at most ``limit`` seconds) and
+    compare its set changes with ``exact_path``'s (:func:`cfcontact.bench.compare_paths`).  Where
+    both complete and differ: how close the exact transitions around the first difference are
+    (``exact_gap``: the smallest distance in alpha from that transition to the two before and the
+    two after it, against the seed's h_min), the seed's unverified transitions, where the seed's
+    path runs back along itself (``seed_retraces``, :func:`_retrace`), and the seed traced again
+    with h_min divided by 10, 100, ... (``finer``: h_min, status, same, first difference) until it
+    agrees, fails or SEED_FINER_STEPS runs are made."""
+    import cfcontact
+    from cfcontact.bench import compare_paths
+
+    def seed(h_min):
+        t0 = time.perf_counter()
+        try:
+            p = cfcontact.trace_path(make_system(), 0.0, 1.0, method="seed", h_min=h_min,
+                                     callback=lambda point: time.perf_counter() - t0 > limit)
+        except cfcontact.CfcontactError as exc:
+            return None, {"status": "error: " + str(exc)[:120], "time": time.perf_counter() - t0}
+        status = "time limit" if p.status == "stopped by callback" else p.status
+        return p, {"status": status, "transitions": len(p.transitions), "time": time.perf_counter() - t0,
+                   "end_alpha": float(p.alphas[-1]) if len(p.alphas) else None,
+                   "unverified": sum(e.kind == "unverified_transition" for e in p.events),
+                   "retraces": _retrace(p, friction)}
+
+    h_min = cfcontact.PathOptions().h_min
+    path, info = seed(h_min)
+    out = {"seed_" + k: v for k, v in info.items()}
+    out["exact_retraces"] = _retrace(exact_path, friction)  # (never: a check of the exact path)
+    if info["status"] != "completed":
+        return out
+    cmp = compare_paths(path, exact_path, friction)
+    # the same sequence of states (sets of every node on every branch): where several nodes change
+    # at one alpha (a symmetric pair), the seed names one of them, the exact method all
+    out["seed_same"] = bool(cmp["same_branch_sets"])
+    out["seed_same_named_changes"] = bool(cmp["same_set_changes"])
+    if out["seed_same"]:
+        out["seed_max_alpha_difference"] = cmp["max_alpha_difference"]
+        return out
+    i = _first_state_difference(path, exact_path, friction)  # -1: different start points
+    alphas = [t.alpha for t in exact_path.transitions]
+    near = [abs(alphas[i] - alphas[j]) for j in range(i - 2, i + 3)
+            if 0 <= i < len(alphas) and j != i and 0 <= j < len(alphas)]
+    out.update(seed_first_difference=i, exact_gap=min(near, default=None), seed_h_min=h_min, finer=[])
+    for _ in range(SEED_FINER_STEPS):
+        h_min /= 10.0
+        again, info = seed(h_min)
+        c = compare_paths(again, exact_path, friction) if info["status"] == "completed" else {}
+        same = bool(c.get("same_branch_sets"))
+        out["finer"].append({"h_min": h_min, "status": info["status"], "same": same,
+                             "first_difference": c.get("first_difference"),
+                             "unverified": info.get("unverified"), "retraces": info.get("retraces"),
+                             "time": info["time"]})
+        if same or info["status"] != "completed":
+            break
     return out
 
 
@@ -385,30 +466,87 @@ def _summary(recs) -> dict:
             # per path: its run with the homotopy start over the same path with its start given
             "homotopy_over_given_start": float(np.median(own)) if own else None,
             "homotopy_over_given_start_max": float(np.max(own)) if own else None,
-            "homotopy_same_path": int(sum(bool(r.get("same_path")) for r in recs if "same_path" in r))}
+            "homotopy_same_path": int(sum(bool(r.get("same_path")) for r in recs if "same_path" in r)),
+            **_seed_summary(recs)}
 
 
-def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None) -> dict:
+def _retrace(path, friction):
+    """The first transition j of ``path`` after which its branch has the sets of the branch before
+    transition j - 1: the path undid its last set change and runs back along itself (the states
+    of a continuous piecewise-affine path never do; None when the path does not)."""
+    from cfcontact.exact import canonical_codes
+
+    codes = [canonical_codes(b.sets, friction).tolist() for b in path.branches]
+    return next((j for j in range(1, len(codes) - 1) if codes[j + 1] == codes[j - 1]), None)
+
+
+def _first_state_difference(seed_path, exact_path, friction) -> int:
+    """The first transition after which the two paths' branches have different sets (-1: their
+    first branches differ; the length of the shorter path: one path is the other's beginning)."""
+    from cfcontact.exact import canonical_codes
+
+    codes = [[canonical_codes(b.sets, friction).tolist() for b in p.branches] for p in (seed_path, exact_path)]
+    return next((i - 1 for i, (a, b) in enumerate(zip(*codes)) if a != b), min(map(len, codes)) - 1)
+
+
+def _seed_difference_explained(r) -> bool:
+    """Does the seed's run account for its difference from the exact path?  It agrees once its
+    smallest step is smaller, or it ran back along itself, or it flagged a transition it could
+    not verify, or the exact transitions there are closer together than its smallest step."""
+    return bool(any(f["same"] for f in r["finer"]) or r["seed_retraces"] is not None or r["seed_unverified"] > 0
+                or (r["exact_gap"] is not None and r["exact_gap"] < r["seed_h_min"]))
+
+
+def _seed_summary(recs) -> dict:
+    """Counts of :func:`_seed_check`'s comparisons (empty when the seed method was not run)."""
+    checked = [r for r in recs if "seed_status" in r]
+    if not checked:
+        return {}
+    done = [r for r in checked if r["seed_status"] == "completed"]
+    differ = [r for r in done if not r["seed_same"]]
+    st = {}
+    for r in checked:
+        st[r["seed_status"]] = st.get(r["seed_status"], 0) + 1
+    return {"seed_status": st, "seed_same": len(done) - len(differ), "seed_differs": len(differ),
+            # where they differ: the exact transitions closer than the seed's h_min there, the seed's
+            # own flags, and whether the seed agrees with a smaller h_min
+            "seed_differs_below_h_min": sum(r["exact_gap"] is not None and r["exact_gap"] < r["seed_h_min"]
+                                            for r in differ),
+            "seed_differs_unverified": sum(r["seed_unverified"] > 0 for r in differ),
+            "seed_differs_retraces": sum(r["seed_retraces"] is not None for r in differ),
+            # none of these: a difference the seed's own run does not account for
+            "seed_differs_unexplained": sum(not _seed_difference_explained(r) for r in differ),
+            "exact_retraces": sum(r.get("exact_retraces") is not None for r in checked),
+            "seed_differs_agrees_finer": sum(any(f["same"] for f in r["finer"]) for r in differ),
+            "seed_time_total": float(sum(r["seed_time"] for r in checked))}
+
+
+def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None, seed_limit=None) -> dict:
     """Part D: strips with uniform and random tractions (``sizes``: their contact node counts,
     default D_SIZES, or QUICK_D_SIZES when quick), the cylinder and the punch, blocks closing
-    all at once, and ``paths`` random load paths on each demo model at F = 30."""
+    all at once, and ``paths`` random load paths on each demo model at F = 30, each traced by the
+    seed method too for at most ``seed_limit`` seconds (default SEED_CHECK_LIMIT, 0 when quick;
+    0: not at all)."""
     from cfcontact.demo_models import build_blocks, build_demo
 
     sizes = sizes or (QUICK_D_SIZES if quick else D_SIZES)
     paths = (QUICK_D_PATHS if quick else D_PATHS) if paths is None else int(paths)
+    seed_limit = (0.0 if quick else SEED_CHECK_LIMIT) if seed_limit is None else float(seed_limit)
     rows = []
+    # a row's worker: its exact path, then the seed method's (and its runs with finer steps)
+    timeout = time_limit * 4 + 600 + (1 + SEED_FINER_STEPS) * seed_limit
     for F in C_FRICTIONS:
         for kind in ("uniform", "random"):
             for m in sizes:
                 log(f"  strip m = {m}, {kind} tractions, F = {F:g} ...")
                 rows.append(run_row({"model": "strip", "kind": kind, "m": m, "friction": F, "seed": 1,
-                                     "time_limit": time_limit}, timeout=time_limit * 4 + 600, log=log))
+                                     "time_limit": time_limit, "seed_check": seed_limit}, timeout=timeout, log=log))
                 log("    " + _row_text(rows[-1]))
     for model in ("cylinder", "punch"):
         for F in C_FRICTIONS:
             log(f"  {model}, F = {F:g} ...")
-            rows.append(run_row({"model": model, "friction": F, "time_limit": time_limit,
-                                 **({"size": 0.05} if quick else {})}, timeout=time_limit * 4 + 600, log=log))
+            rows.append(run_row({"model": model, "friction": F, "time_limit": time_limit, "seed_check": seed_limit,
+                                 **({"size": 0.05} if quick else {})}, timeout=timeout, log=log))
             log("    " + _row_text(rows[-1]))
     # the load vanishes where the interface closes (f2 = -f1): the path crosses that apex by its ray
     # (exact.APEX_RULE); the rows without it measure the lexicographic rule on a point of m nodes
@@ -417,13 +555,13 @@ def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None) -> 
             log(f"  two blocks closing at once, m = {m}, " + ("by the apex rule" if apex_rule else
                                                               "by the lexicographic rule") + " ...")
             rows.append(run_row({"model": "closing", "m": m, "friction": 0.3, "time_limit": time_limit,
-                                 "apex_rule": apex_rule, "kind": "apex" if apex_rule else "lex"},
-                                timeout=time_limit * 4 + 600, log=log))
+                                 "apex_rule": apex_rule, "kind": "apex" if apex_rule else "lex",
+                                 "seed_check": seed_limit}, timeout=timeout, log=log))
             log("    " + _row_text(rows[-1]))
     random = {}
     for name, build in (("demo", build_demo), ("blocks", build_blocks)):
         log(f"  {paths} random load paths on the {name} model at F = 30 ...")
-        recs = _random_loads(build, 30.0, paths, 1000, log)
+        recs = _random_loads(build, 30.0, paths, 1000, log, seed_limit)
         random[name] = {"summary": _summary(recs), "runs": recs}
         log(f"    {random[name]['summary']}")
     return {"rows": rows, "random_loads": random}

@@ -79,9 +79,9 @@ def test_bench_wrapper_and_bad_options(tmp_path):
     env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
     proc = subprocess.run([sys.executable, os.path.join(DEMOS, "bench.py"), "--help"], capture_output=True, text=True,
                           cwd=ROOT, env=env, timeout=120)
-    assert proc.returncode == 0 and "--skip-large" in proc.stdout
+    assert proc.returncode == 0 and "--skip-large" in proc.stdout and "--seed-check" in proc.stdout
     for bad in (["--part", "X"], ["--sizes", "1e4,x"], ["--repeat", "0"], ["--min-time", "-1"],
-                ["--part", "C", "--time-limit", "-3"], ["--part", "D", "--paths", "0"],
+                ["--part", "C", "--time-limit", "-3"], ["--part", "D", "--paths", "0"], ["--part", "D", "--seed-check", "-1"],
                 ["--part", "C", "--contact-nodes", "100,x"], ["--part", "C", "--contact-nodes", "2"]):
         proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", *bad, "--output", str(tmp_path)],
                               capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
@@ -137,7 +137,7 @@ def test_bench_parts_c_and_d_quick(tmp_path):
         assert r["time_per_transition"] * r["transitions"] == pytest.approx(r["path_time"] - r["start_time"])
         assert r["path_time_per_transition"] > r["time_per_transition"]
     assert set(c["slope"]) == set(c["slope_with_start"]) == {"0.3", "30.0"}
-    d = bs.part_d(quick=True, paths=4, time_limit=120, log=lambda *a: None)
+    d = bs.part_d(quick=True, paths=4, time_limit=120, log=lambda *a: None, seed_limit=30)
     models = {r["model"] for r in d["rows"]}
     assert models == {"strip", "cylinder", "punch", "closing"}
     for r in d["rows"]:
@@ -148,6 +148,16 @@ def test_bench_parts_c_and_d_quick(tmp_path):
     for name in ("demo", "blocks"):
         s = d["random_loads"][name]["summary"]
         assert s["runs"] == 4 and s["status"] == {"completed": 4} and s["backtracks"] == 0, s
+    # the seed method on the same rows and paths: where it completes, the same states as the exact
+    # path, or a difference its own runs account for (finer steps agree, it runs back along itself)
+    runs = d["rows"] + [r for name in ("demo", "blocks") for r in d["random_loads"][name]["runs"]]
+    assert all(r["exact_retraces"] is None for r in runs)
+    done = [r for r in runs if r["seed_status"] == "completed"]
+    assert len(done) >= len(runs) - 2 and sum(r["seed_same"] for r in done) >= len(done) - 4
+    assert all(r["seed_same"] or bs._seed_difference_explained(r) for r in done)
+    strip30 = [r for r in d["rows"] if r["model"] == "strip" and r["friction"] == 30 and r["kind"] == "uniform"]
+    assert strip30[0]["seed_retraces"] is not None and strip30[0]["seed_end_alpha"] == 0.0  # back to its start
+    assert any(f["same"] for r in done for f in r.get("finer", []))  # (a blocks path: agrees at h_min = 1e-6)
     text = bs.table(c["rows"] + d["rows"])
     assert "s/trans." in text and "completed" in text
 
