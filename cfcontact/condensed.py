@@ -369,6 +369,9 @@ class CondensedSolver:
         self._s_colmax = None  # max_i |S_ij| (needs_true)
         #: every branch of the exact method is corrected against K (see needs_true)
         self.true_always = False
+        #: the smallest residual of a branch's equations (relative to the size of its terms) that
+        #: a correction against K failed to halve: the rounding floor of the measure (see against_K)
+        self.polish_floor = None
         if S is not None:
             self._probe_refinement()
             if self.refine_steps:
@@ -805,11 +808,15 @@ class CondensedSolver:
             return True
         size = np.abs(W[:, 0]).max(initial=0.0)
         if L is not None:
-            if self._s_colmax is None:
-                self._s_colmax = np.abs(self.S).max(axis=0)
-            size = max(size, float(self._s_colmax @ np.abs(L[:, 0])))
+            size = max(size, float(self._colmax() @ np.abs(L[:, 0])))
         err = max(self.s_error, np.finfo(float).eps) * self.system.rho * size
         return bool(err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0))
+
+    def _colmax(self) -> np.ndarray:
+        """max_i |S_ij| per column j (once): sum_j of it times |L_j| bounds the terms of S L."""
+        if self._s_colmax is None:
+            self._s_colmax = np.abs(self.S).max(axis=0)
+        return self._s_colmax
 
     def against_K(self, W, L, G, imposed, true, correction) -> tuple:
         """(L, G) of a branch (data W, multipliers L, indicators G, equation rows ``imposed``)
@@ -817,7 +824,13 @@ class CondensedSolver:
         while the equations' residual rho R[imposed] exceeds POLISH_RTOL of the indicators (per
         column), L += correction(R, L) (the branch's own solve; at most POLISH_MAX_STEPS, and only
         while each halves the residual: below that it is rounding).  G then reads the free rows
-        of B u from the last R, which belongs to the returned L: no product with S."""
+        of B u from the last R, which belongs to the returned L: no product with S.
+        A correction that fails to halve the residual is thrown away, and when it came after one
+        that did, the residual it started from is the measure's rounding floor (``polish_floor``,
+        relative to the size of the terms that make B u: rho max(|W|, sum_j max_i |S_ij| |L_j|);
+        the smallest seen): once a correction has brought the residual within twice that floor, no
+        further one is tried.  (The m = 4000 strip at F = 30: every branch's first correction
+        left 1.0-1.2 times POLISH_RTOL, and a second, thrown away, cost a fifth of the branch.)"""
         if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
             self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
         loads, gap = true
@@ -836,13 +849,19 @@ class CondensedSolver:
             self.true_always = True
             log.info("a branch's equations are off by %.1e of its indicators in solves with K: from now on every "
                      "branch is corrected against K", float((res / np.maximum(size, 1e-300)).max()))
-        for _ in range(POLISH_MAX_STEPS):
+        terms = rho * max(np.abs(W).max(initial=0.0), float(self._colmax() @ np.abs(L).max(axis=1, initial=0.0)))
+        for step in range(POLISH_MAX_STEPS):
             if (res <= scale).all():
                 break
+            rel = float(res.max()) / max(terms, 1e-300)
+            if step and self.polish_floor is not None and rel <= 2.0 * self.polish_floor:
+                break  # within the measure's rounding: a further correction would be thrown away
             L1 = L + correction(R, L)
             self.stats.dense_solves += L.shape[1]
             R1, res1 = measure(L1)
             if not res1.max() < 0.5 * res.max():
+                if step:  # (after a correction that worked: the floor, not a correction gone wrong)
+                    self.polish_floor = rel if self.polish_floor is None else min(self.polish_floor, rel)
                 break
             L, R, res = L1, R1, res1
         self.stats.true_corrections += 1

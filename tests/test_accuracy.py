@@ -277,3 +277,37 @@ def test_needs_true_bounds_the_terms_of_S_lam_not_only_w(strip):
     assert solver.needs_true(W, G, L)
     solver.true_always = True  # (a correction found a branch off: every branch from then on)
     assert solver.needs_true(W, G)
+
+
+def test_corrections_against_K_stop_at_the_rounding_floor_they_have_measured(strip):
+    """against_K throws away a correction that does not halve the residual; when that happens
+    after a correction that worked, the residual it started from is the measure's rounding floor,
+    and later branches make no correction once within twice that floor: the same multipliers, one
+    measure fewer (the m = 4000 strip at F = 30: a fifth of every branch)."""
+    solver = CondensedSolver(strip, SolverOptions(refine=True))
+    m2, rho = 2 * strip.m, strip.rho
+    rng = np.random.default_rng(3)
+    imposed = np.zeros(m2, dtype=bool)
+    imposed[:4] = True
+    lam_star = rng.standard_normal((m2, 2))
+    noise = 3e-3 / rho  # the measure's rounding: rho |R| = 3e-3, above POLISH_RTOL |G| = 1e-10 * 1e3
+    calls = []
+
+    def true_rows(loads, L, gap):  # B u - g of the branch: off by L - lam_star, plus rounding
+        calls.append(L.copy())
+        return np.where(imposed[:, None], (L - lam_star) / rho * 1e-2, 0.0) + noise * rng.uniform(0.5, 1.0, (m2, 2))
+
+    solver.true_rows = true_rows
+    W = np.zeros((m2, 2))
+    G = np.full((3 * strip.m, 2), 1e3)
+    correction = lambda R, L: -np.where(imposed[:, None], R * rho * 1e2, 0.0)  # noqa: E731 (exact step)
+    L0 = lam_star + np.where(imposed[:, None], 1.0, 0.0)  # rho |R| = 1e-2 at first
+    L1, _ = solver.against_K(W, L0, G, imposed, (None, np.zeros(2)), correction)
+    assert len(calls) == 3 and solver.polish_floor is not None  # the second correction: thrown away
+    np.testing.assert_array_equal(L1, calls[1])  # the first correction's multipliers are kept
+    calls.clear()
+    L2, _ = solver.against_K(W, L0, G, imposed, (None, np.zeros(2)), correction)
+    assert len(calls) == 2  # the first correction reached the floor: no second one
+    for L in (L1, L2):  # corrected to the rounding (a step of 1 in the imposed rows, left: 0.3)
+        assert np.abs(L - lam_star)[imposed].max() < 0.31
+        np.testing.assert_array_equal(L[~imposed], L0[~imposed])
