@@ -392,14 +392,16 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
     two after it, against the seed's h_min), the seed's unverified transitions, where the seed's
     path runs back along itself (``seed_retraces``, :func:`_retrace`), and the seed traced again
     with h_min divided by 10, 100, ... (``finer``: h_min, status, same, first difference) until it
-    agrees, fails or SEED_FINER_STEPS runs are made."""
+    agrees, fails or SEED_FINER_STEPS runs are made.  When the seed method's SSNM starts from
+    another solution at alpha = 0 (``seed_own_start``: that run), it is traced from the exact
+    path's start point instead."""
     import cfcontact
     from cfcontact.bench import compare_paths
 
-    def seed(h_min):
+    def seed(h_min, y0=None):
         t0 = time.perf_counter()
         try:
-            p = cfcontact.trace_path(make_system(), 0.0, 1.0, method="seed", h_min=h_min,
+            p = cfcontact.trace_path(make_system(), 0.0, 1.0, method="seed", h_min=h_min, y0=y0,
                                      callback=lambda point: time.perf_counter() - t0 > limit)
         except cfcontact.CfcontactError as exc:
             return None, {"status": "error: " + str(exc)[:120], "time": time.perf_counter() - t0}
@@ -411,8 +413,16 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
 
     h_min = cfcontact.PathOptions().h_min
     path, info = seed(h_min)
-    out = {"seed_" + k: v for k, v in info.items()}
-    out["exact_retraces"] = _retrace(exact_path, friction)  # (never: a check of the exact path)
+    out = {"exact_retraces": _retrace(exact_path, friction)}  # (never: a check of the exact path)
+    y0 = None
+    if path is not None and path.branches and exact_path.branches and _first_state_difference(
+            path, exact_path, friction) < 0:
+        # its SSNM found another solution at alpha = 0 (at F = 30 there can be several): the seed
+        # method again from the exact path's start point, which is then its own
+        out["seed_own_start"] = info
+        y0 = next(iter(exact_path.iter_points(indices=[0])))[1]
+        path, info = seed(h_min, y0)
+    out.update({"seed_" + k: v for k, v in info.items()})
     if info["status"] != "completed":
         return out
     cmp = compare_paths(path, exact_path, friction)
@@ -423,14 +433,14 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
     if out["seed_same"]:
         out["seed_max_alpha_difference"] = cmp["max_alpha_difference"]
         return out
-    i = _first_state_difference(path, exact_path, friction)  # -1: different start points
+    i = _first_state_difference(path, exact_path, friction)
     alphas = [t.alpha for t in exact_path.transitions]
     near = [abs(alphas[i] - alphas[j]) for j in range(i - 2, i + 3)
             if 0 <= i < len(alphas) and j != i and 0 <= j < len(alphas)]
     out.update(seed_first_difference=i, exact_gap=min(near, default=None), seed_h_min=h_min, finer=[])
     for _ in range(SEED_FINER_STEPS):
         h_min /= 10.0
-        again, info = seed(h_min)
+        again, info = seed(h_min, y0)
         c = compare_paths(again, exact_path, friction) if info["status"] == "completed" else {}
         same = bool(c.get("same_branch_sets"))
         out["finer"].append({"h_min": h_min, "status": info["status"], "same": same,
@@ -508,6 +518,8 @@ def _seed_summary(recs) -> dict:
     for r in checked:
         st[r["seed_status"]] = st.get(r["seed_status"], 0) + 1
     return {"seed_status": st, "seed_same": len(done) - len(differ), "seed_differs": len(differ),
+            # its SSNM started from another solution at alpha = 0: traced from the exact start instead
+            "seed_own_start": sum("seed_own_start" in r for r in checked),
             # where they differ: the exact transitions closer than the seed's h_min there, the seed's
             # own flags, and whether the seed agrees with a smaller h_min
             "seed_differs_below_h_min": sum(r["exact_gap"] is not None and r["exact_gap"] < r["seed_h_min"]
