@@ -60,7 +60,7 @@ from cfcontact import demo_models as dm
 from cfcontact.bench_stress import peak_rss_gib, run_worker
 from cfcontact.demo_models import BLOCKS_F1, BLOCKS_F2, BLOCKS_MODEL, build_blocks
 from cfcontact.errors import InputError
-from cfcontact.report import worst_residual
+from cfcontact.report import compare_paths, worst_residual
 
 SIZES = (1e4, 1.2e5, 1e6)
 QUICK_SIZES = (2e3, 1e4)
@@ -85,27 +85,6 @@ def _method_result(path, system, solver, wall, extra=None):
             "branches": len(path.branches), "points": len(path.alphas), "max_multiplicity": mult,
             "alpha_of_max": at, "wall_time": wall, "events": [e.kind for e in path.events],
             "worst_residual": worst_residual(system, path, solver), **(extra or {})}
-
-
-def compare_paths(seed, exact, friction) -> dict:
-    """Same sequence of set changes (node, set, kind)?  Transition alphas within the seed's h_min?"""
-    from cfcontact.exact import canonical_codes
-
-    ks = [(t.node, t.set, t.kind) for t in seed.transitions]
-    ke = [(t.node, t.set, t.kind) for t in exact.transitions]
-    h_min = float(seed.options.get("h_min", 1e-5))
-    same = ks == ke
-    diffs = [abs(a.alpha - b.alpha) for a, b in zip(seed.transitions, exact.transitions)]
-    in_bracket = all(s.bracket[0] - 1e-12 <= e.alpha <= s.bracket[1] + 1e-12
-                     for s, e in zip(seed.transitions, exact.transitions))
-    first = next((i for i, (a, b) in enumerate(zip(ks, ke)) if a != b), None if same else min(len(ks), len(ke)))
-    sets_s = [canonical_codes(b.sets, friction).tolist() for b in seed.branches]
-    sets_e = [canonical_codes(b.sets, friction).tolist() for b in exact.branches]
-    return {"same_set_changes": same, "first_difference": first, "h_min": h_min,
-            "max_alpha_difference": max(diffs, default=0.0),
-            "alphas_within_h_min": bool(same and all(d <= h_min for d in diffs)),
-            "exact_alpha_in_seed_bracket": bool(same and in_bracket),
-            "same_branch_sets": sets_s == sets_e}
 
 
 def _timed_runs(run, repeat, min_time):

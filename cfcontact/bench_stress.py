@@ -386,7 +386,7 @@ def _random_loads(build, friction, paths, seed0, log, seed_limit=0.0):
 
 def _seed_check(make_system, exact_path, friction, limit) -> dict:
     """Trace the path of ``make_system()`` by the seed method (at most ``limit`` seconds) and
-    compare its set changes with ``exact_path``'s (:func:`cfcontact.bench.compare_paths`).  Where
+    compare its set changes with ``exact_path``'s (:func:`cfcontact.report.compare_paths`).  Where
     both complete and differ: how close the exact transitions around the first difference are
     (``exact_gap``: the smallest distance in alpha from that transition to the two before and the
     two after it, against the seed's h_min), the seed's unverified transitions, where the seed's
@@ -396,7 +396,7 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
     another solution at alpha = 0 (``seed_own_start``: that run), it is traced from the exact
     path's start point instead."""
     import cfcontact
-    from cfcontact.bench import compare_paths
+    from cfcontact.report import compare_paths
 
     def seed(h_min, y0=None):
         t0 = time.perf_counter()

@@ -104,6 +104,15 @@ SCHUR_CHECK_RTOL = 1e-11
 #: does not depend on the loads: the uniform strip's is the same (6.6e-10 unrefined, 1.6e-10
 #: refined).  SolverOptions(refine=True) forces refinement.
 REFINE_RTOL = 2.7e-11
+#: ... and above NATIVE_MAX_DOFS degrees of freedom, when it changes B x by more than this: one
+#: probe vector does not tell which of these models need it (strips of L/H = 14, 5 cells across,
+#: at F = 30: m = 500 probe 3.2e-11, unrefined points 4.9e-9; m = 700 probe 8.2e-12 -- below
+#: REFINE_RTOL --, unrefined 2.1e-8, refined 6.6e-10; m = 400 probe 2.4e-11, 3.1e-10), and there
+#: refinement costs a few per cent of the run.  At n <= NATIVE_MAX_DOFS it costs 16-30 % of the
+#: whole exact run (the main demo, the two steel blocks), and the models measured there leave
+#: at most 1e-11 unrefined (strips one cell across up to m = 250 at F = 30, probe 9e-13; the
+#: main demo 1e-13 with probes of 5e-12 to 2.4e-11).
+REFINE_RTOL_LARGE = 1e-12
 #: Refinement steps are taken until a correction is below this (relative, in B x) or stops
 #: shrinking tenfold, at most REFINE_MAX_STEPS; a probe that still needs more (K too
 #: ill-conditioned for refinement to contract) is logged as a warning.
@@ -489,10 +498,10 @@ class CondensedSolver:
 
     def _probe(self):
         """(steps, error, floor): refine one solve K x = B^T v (v fixed, random) with double-double
-        residuals; error = the first correction's share of B x (when it is below REFINE_RTOL: no
-        refinement, steps = 0), steps = how many corrections it takes to get below REFINE_TARGET or
-        to stop shrinking, floor = the correction after those steps; or as SolverOptions.refine
-        says.  Two solves with K when no refinement is needed, one more per step."""
+        residuals; error = the first correction's share of B x (when it is below REFINE_RTOL, or
+        REFINE_RTOL_LARGE above NATIVE_MAX_DOFS: no refinement, steps = 0), steps = how many
+        corrections it takes to get below REFINE_TARGET or to stop shrinking, floor = the
+        correction after those steps; or as SolverOptions.refine says.  Two solves with K when no refinement is needed, one more per step."""
         opt = self.options.refine
         if opt is False or self.m == 0:
             return 0, None, None
@@ -504,7 +513,8 @@ class CondensedSolver:
             d = self._ksolve(self._kresidual(b, x))
             x += d
             c = np.abs(self._allreduce(self.B_local @ d)).max() / scale
-            if not corrections and not opt and c <= REFINE_RTOL:
+            threshold = REFINE_RTOL if self.n <= NATIVE_MAX_DOFS else REFINE_RTOL_LARGE
+            if not corrections and not opt and c <= threshold:
                 return 0, c, None
             if corrections and (c <= REFINE_TARGET or c > 0.1 * corrections[-1]):
                 break  # after len(corrections) steps the error is c

@@ -190,4 +190,4 @@ def test_a_worker_that_reported_nothing_prints_as_failed():
 
     text = _row_text({"model": "strip", "kind": "uniform", "friction": 0.3, "returncode": 1, "stage": None,
                       "worst_residual": None, "error": ""})
-    assert text.rstrip().endswith("nan      - failed (rc 1)")
+    assert text.rstrip().endswith("nan      - failed (rc 1)          -")  # (no seed method run: -)
