@@ -21,10 +21,13 @@ random load paths on each model of the demos (:mod:`cfcontact.demo_models`) at F
 how many runs completed, got stuck, cycled, closed a loop, hit the transition cap or failed to
 start; the transitions; the degenerate points resolved (and the largest number of indicators
 vanishing at one); the time; the cost of a degenerate point against an ordinary branch; the cost
-of a start that SSNM could not find (homotopy) against one it found.
+of a start that SSNM could not find (homotopy) against one it found; and, with every row and
+path traced by the seed method too (``--seed-check S`` seconds per path), whether it gives the
+same sequence of states and, where not, what its own runs say about the difference
+(:func:`_seed_check`).
 
 Run:  cfcontact bench --part C [--quick] [--time-limit S]
-      cfcontact bench --part D [--quick] [--paths N]
+      cfcontact bench --part D [--quick] [--paths N] [--seed-check S]
 """
 
 from __future__ import annotations
@@ -50,8 +53,8 @@ D_SIZES = (500, 1000, 2000)
 QUICK_D_SIZES = (100,)
 D_PATHS = 200
 QUICK_D_PATHS = 10
-#: Part D: each random load path is traced by the seed method too, at most this many seconds
-#: (0: not at all), and compared with the exact path where the seed method completes; where the
+#: Part D: each row and random load path is traced by the seed method too, at most this many
+#: seconds (0: not at all), and compared with the exact path where the seed method completes; where the
 #: two differ, the seed method is run again with its smallest step h_min divided by 10, 100, ...
 #: (SEED_FINER_STEPS times) to see whether it agrees once it resolves the transitions.
 SEED_CHECK_LIMIT = 60.0
@@ -444,7 +447,8 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
         c = compare_paths(again, exact_path, friction) if info["status"] == "completed" else {}
         same = bool(c.get("same_branch_sets"))
         out["finer"].append({"h_min": h_min, "status": info["status"], "same": same,
-                             "first_difference": c.get("first_difference"),
+                             "first_difference": None if same or not c else _first_state_difference(
+                                 again, exact_path, friction),
                              "unverified": info.get("unverified"), "retraces": info.get("retraces"),
                              "time": info["time"]})
         if same or info["status"] != "completed":

@@ -501,7 +501,8 @@ class CondensedSolver:
         residuals; error = the first correction's share of B x (when it is below REFINE_RTOL, or
         REFINE_RTOL_LARGE above NATIVE_MAX_DOFS: no refinement, steps = 0), steps = how many
         corrections it takes to get below REFINE_TARGET or to stop shrinking, floor = the
-        correction after those steps; or as SolverOptions.refine says.  Two solves with K when no refinement is needed, one more per step."""
+        correction after those steps; or as SolverOptions.refine says.  Two solves with K when no
+        refinement is needed, one more per step."""
         opt = self.options.refine
         if opt is False or self.m == 0:
             return 0, None, None
@@ -509,11 +510,11 @@ class CondensedSolver:
         x = self._ksolve(b)
         scale = max(np.abs(self._allreduce(self.B_local @ x)).max(), 1e-300)
         corrections = []
+        threshold = REFINE_RTOL if self.n <= NATIVE_MAX_DOFS else REFINE_RTOL_LARGE
         while True:
             d = self._ksolve(self._kresidual(b, x))
             x += d
             c = np.abs(self._allreduce(self.B_local @ d)).max() / scale
-            threshold = REFINE_RTOL if self.n <= NATIVE_MAX_DOFS else REFINE_RTOL_LARGE
             if not corrections and not opt and c <= threshold:
                 return 0, c, None
             if corrections and (c <= REFINE_TARGET or c > 0.1 * corrections[-1]):
