@@ -123,7 +123,8 @@ def test_bench_parts_c_and_d_quick(tmp_path):
     """Parts C (long interfaces) and D (hard cases) at their quick sizes: every row traced to the end
     (no stuck, cycling, transition cap or start failure), with factorization updates on the strips,
     small residuals, the slope of the time per transition, and the random load paths of the demo
-    models at F = 30 all completed."""
+    models at F = 30 all completed; each row and path traced by the seed method too, which gives
+    the same states where it completes, or a difference its own runs account for."""
     from cfcontact import bench_stress as bs
 
     c = bs.part_c(quick=True, time_limit=120, log=lambda *a: None)
