@@ -428,8 +428,8 @@ def add_arguments(ap):
                     help="Parts C and D: tracing time limit of one row [s] (default 600)")
     ap.add_argument("--paths", type=int, help="Part D: random load paths per demo model (default 200; --quick: 10)")
     ap.add_argument("--seed-check", type=float,
-                    help="Part D: also trace each random load path by the seed method, at most this many seconds "
-                         "each, and compare their set changes (default 60; --quick: 0; 0: off)")
+                    help="Part D: also trace each row and random load path by the seed method, at most this many "
+                         "seconds each, and compare their states (default 60; --quick: 0; 0: off)")
     ap.add_argument("--repeat", type=int, help="Part A: run each method at least this many times and report the "
                                                "fastest (default 3; --quick: 1)")
     ap.add_argument("--min-time", type=float, help="Part A: run each method for at least this many seconds "

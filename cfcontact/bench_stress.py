@@ -402,56 +402,58 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
     from cfcontact.report import compare_paths
 
     def seed(h_min, y0=None):
+        """(path, its states, info) of one seed run (path and states None when it raised)."""
         t0 = time.perf_counter()
         try:
             p = cfcontact.trace_path(make_system(), 0.0, 1.0, method="seed", h_min=h_min, y0=y0,
                                      callback=lambda point: time.perf_counter() - t0 > limit)
         except cfcontact.CfcontactError as exc:
-            return None, {"status": "error: " + str(exc)[:120], "time": time.perf_counter() - t0}
+            return None, None, {"status": "error: " + str(exc)[:120], "time": time.perf_counter() - t0}
         status = "time limit" if p.status == "stopped by callback" else p.status
-        return p, {"status": status, "transitions": len(p.transitions), "time": time.perf_counter() - t0,
-                   "end_alpha": float(p.alphas[-1]) if len(p.alphas) else None,
-                   "unverified": sum(e.kind == "unverified_transition" for e in p.events),
-                   "retraces": _retrace(p, friction)}
+        states = _states(p, friction)
+        return p, states, {"status": status, "transitions": len(p.transitions), "time": time.perf_counter() - t0,
+                           "end_alpha": float(p.alphas[-1]) if len(p.alphas) else None,
+                           "unverified": sum(e.kind == "unverified_transition" for e in p.events),
+                           "retraces": _retrace(states)}
 
+    exact_states = _states(exact_path, friction)
     h_min = cfcontact.PathOptions().h_min
-    path, info = seed(h_min)
-    out = {"exact_retraces": _retrace(exact_path, friction)}  # (never: a check of the exact path)
+    path, states, info = seed(h_min)
+    out = {"exact_retraces": _retrace(exact_states)}  # (never: a check of the exact path)
     y0 = None
-    if path is not None and path.branches and exact_path.branches and _first_state_difference(
-            path, exact_path, friction) < 0:
+    if states and exact_states and _first_state_difference(states, exact_states) < 0:
         # its SSNM found another solution at alpha = 0 (at F = 30 there can be several): the seed
         # method again from the exact path's start point, which is then its own
         out["seed_own_start"] = info
         y0 = next(iter(exact_path.iter_points(indices=[0])))[1]
-        path, info = seed(h_min, y0)
+        path, states, info = seed(h_min, y0)
     out.update({"seed_" + k: v for k, v in info.items()})
     if info["status"] != "completed":
         return out
-    cmp = compare_paths(path, exact_path, friction)
     # the same sequence of states (sets of every node on every branch): where several nodes change
     # at one alpha (a symmetric pair), the seed names one of them, the exact method all
-    out["seed_same"] = bool(cmp["same_branch_sets"])
+    cmp = compare_paths(path, exact_path, friction)
+    out["seed_same"] = states == exact_states  # (cmp's same_branch_sets)
     out["seed_same_named_changes"] = bool(cmp["same_set_changes"])
     if out["seed_same"]:
         out["seed_max_alpha_difference"] = cmp["max_alpha_difference"]
         return out
-    i = _first_state_difference(path, exact_path, friction)
+    i = _first_state_difference(states, exact_states)
     alphas = [t.alpha for t in exact_path.transitions]
     near = [abs(alphas[i] - alphas[j]) for j in range(i - 2, i + 3)
             if 0 <= i < len(alphas) and j != i and 0 <= j < len(alphas)]
     out.update(seed_first_difference=i, exact_gap=min(near, default=None), seed_h_min=h_min, finer=[])
     for _ in range(SEED_FINER_STEPS):
         h_min /= 10.0
-        again, info = seed(h_min, y0)
-        c = compare_paths(again, exact_path, friction) if info["status"] == "completed" else {}
-        same = bool(c.get("same_branch_sets"))
+        _, again, info = seed(h_min, y0)
+        done = info["status"] == "completed"
+        same = done and again == exact_states
         out["finer"].append({"h_min": h_min, "status": info["status"], "same": same,
-                             "first_difference": None if same or not c else _first_state_difference(
-                                 again, exact_path, friction),
+                             "first_difference": _first_state_difference(again, exact_states)
+                             if done and not same else None,
                              "unverified": info.get("unverified"), "retraces": info.get("retraces"),
                              "time": info["time"]})
-        if same or info["status"] != "completed":
+        if same or not done:
             break
     return out
 
@@ -484,23 +486,27 @@ def _summary(recs) -> dict:
             **_seed_summary(recs)}
 
 
-def _retrace(path, friction):
-    """The first transition j of ``path`` after which its branch has the sets of the branch before
-    transition j - 1: the path undid its last set change and runs back along itself (the states
-    of a continuous piecewise-affine path never do; None when the path does not)."""
+def _states(path, friction) -> list:
+    """The state of every node on each of the path's branches (canonical codes, as lists)."""
     from cfcontact.exact import canonical_codes
 
-    codes = [canonical_codes(b.sets, friction).tolist() for b in path.branches]
-    return next((j for j in range(1, len(codes) - 1) if codes[j + 1] == codes[j - 1]), None)
+    return [canonical_codes(b.sets, friction).tolist() for b in path.branches]
 
 
-def _first_state_difference(seed_path, exact_path, friction) -> int:
-    """The first transition after which the two paths' branches have different sets (-1: their
-    first branches differ; the length of the shorter path: one path is the other's beginning)."""
-    from cfcontact.exact import canonical_codes
+def _retrace(states):
+    """The first transition j of a path (``states``: :func:`_states`) after which its branch has
+    the sets of the branch before transition j - 1: the path undid its last set change and runs
+    back along itself (the states of a continuous piecewise-affine path never do; None when the
+    path does not)."""
+    return next((j for j in range(1, len(states) - 1) if states[j + 1] == states[j - 1]), None)
 
-    codes = [[canonical_codes(b.sets, friction).tolist() for b in p.branches] for p in (seed_path, exact_path)]
-    return next((i - 1 for i, (a, b) in enumerate(zip(*codes)) if a != b), min(map(len, codes)) - 1)
+
+def _first_state_difference(seed_states, exact_states) -> int:
+    """The first transition after which two paths' branches (their :func:`_states`) have
+    different sets (-1: their first branches differ; the length of the shorter path: one path is
+    the other's beginning)."""
+    pairs = zip(seed_states, exact_states)
+    return next((i - 1 for i, (a, b) in enumerate(pairs) if a != b), min(len(seed_states), len(exact_states)) - 1)
 
 
 def _seed_difference_explained(r) -> bool:
