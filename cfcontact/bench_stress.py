@@ -371,7 +371,7 @@ def _random_loads(build, friction, paths, seed0, log, seed_limit=0.0):
         except cfcontact.CfcontactError as exc:
             rec = {"status": "start failure", "error": str(exc)[:200], "transitions": 0}
         rec["time"] = time.perf_counter() - t0
-        if rec.get("start") in ("frictionless", "homotopy"):
+        if rec.get("start") in ("frictionless", "ssnm_rho", "homotopy"):
             # the same path from its start branch's sets (the start given): what the homotopy
             # start adds to this path, apart from the path's own length
             again = base.with_loads(g1, g2)
@@ -467,8 +467,9 @@ def _summary(recs) -> dict:
     for r in recs:
         starts.setdefault(r.get("start") or "-", []).append(r["time"])
     ssnm_t = np.median(starts["ssnm"]) if starts.get("ssnm") else float("nan")
-    # the paths whose SSNM start failed: started by either homotopy of the exact method
-    hom = starts.get("frictionless", []) + starts.get("homotopy", [])
+    # the paths whose SSNM start failed: started by either homotopy of the exact method or by SSNM
+    # with another rho
+    hom = starts.get("frictionless", []) + starts.get("ssnm_rho", []) + starts.get("homotopy", [])
     own = [r["time"] / r["time_given_start"] for r in recs if r.get("time_given_start")]
     return {"runs": len(recs), "status": st, "transitions_total": int(sum(r["transitions"] for r in recs)),
             "transitions_max": int(max(r["transitions"] for r in recs)),

@@ -1177,11 +1177,14 @@ class CondensedSolver:
         choice = getattr(self.options, "updates", None)
         return (2 * self.m >= UPDATE_MIN_SIZE) if choice is None else bool(choice)
 
-    def indicators(self, lam: np.ndarray, w: np.ndarray, support: Optional[np.ndarray] = None) -> np.ndarray:
+    def indicators(self, lam: np.ndarray, w: np.ndarray, support: Optional[np.ndarray] = None,
+                   rho: Optional[float] = None) -> np.ndarray:
         """The indicators (17) stacked (a, bp, bm) (3m, or 3m x k for columns) of DirNeu's
         lam for the load with w = B K^-1 f, from B u = w - S lam (no u needed).  ``support``:
-        the rows of lam that may be non-zero (default: found from lam)."""
-        m, rho = self.m, self.system.rho
+        the rows of lam that may be non-zero (default: found from lam).  ``rho``: the
+        augmentation parameter (default: the system's)."""
+        m = self.m
+        rho = self.system.rho if rho is None else float(rho)
         nz = support if support is not None else (lam if lam.ndim == 1 else (lam != 0.0).any(axis=1)).nonzero()[0]
         if 2 * nz.size < lam.shape[0]:  # open nodes carry no force: only the columns of S of the others
             Bu = w - _rows_t_times(self.St, nz, lam[nz])  # columns of S as rows of S^T: contiguous
@@ -1208,12 +1211,16 @@ class CondensedSolver:
         raise ConvergenceError(f"SSNM did not converge in {max_iter} iterations at alpha={alpha}",
                                iterations=max_iter, last=Solution.from_y(system, y, alpha, iterations=max_iter))
 
-    def ssnm_sets(self, f: np.ndarray, tol: float, max_iter: int) -> Optional[InactiveSets]:
+    def ssnm_sets(self, f: np.ndarray, tol: float, max_iter: int, rho: Optional[float] = None) -> Optional[InactiveSets]:
         """The inactive sets of the solution SSNM finds from 0 (as :meth:`ssnm` with y0 = 0),
-        without forming u; None when SSNM does not converge in ``max_iter`` iterations."""
+        without forming u; None when SSNM does not converge in ``max_iter`` iterations.  ``rho``:
+        the augmentation parameter of SSNM's indicators (default: the system's).  The solutions
+        of (1)-(3) do not depend on it, SSNM's convergence does; the sets returned are those of
+        the indicators at ``rho``, which are the system's own except where an indicator vanishes
+        at the solution (a tie: the caller checks them at the system's rho)."""
         m = self.m
         Z0 = InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
-        lam, Z, k, converged = self._ssnm_lam(self.load_data(f), Z0, np.zeros(2 * m), tol, max_iter)
+        lam, Z, k, converged = self._ssnm_lam(self.load_data(f), Z0, np.zeros(2 * m), tol, max_iter, rho)
         return Z if converged else None
 
     def frictionless_solution(self, w: np.ndarray, tol: float, max_iter: int) -> Optional[tuple]:
@@ -1241,10 +1248,11 @@ class CondensedSolver:
             self.F, self._F0, self._lu = saved
         return (lam, Z) if converged else None
 
-    def _ssnm_lam(self, w, Z, lam_prev, tol, max_iter):
+    def _ssnm_lam(self, w, Z, lam_prev, tol, max_iter, rho=None):
         """SSNM iterations in the multipliers from the sets Z and multipliers lam_prev:
         (lam, sets of lam's iteration, iterations, converged); lam is the last iterate (the
-        previous one when not converged, as the seed's ConvergenceError reports it)."""
+        previous one when not converged, as the seed's ConvergenceError reports it).  ``rho``:
+        the indicators' augmentation parameter (default: the system's)."""
         m = self.m
         if m == 0:
             return np.zeros(0), Z, 1, True
@@ -1271,7 +1279,7 @@ class CondensedSolver:
             self.stats.ssnm_iterations += 1
             if np.linalg.norm(lam - lam_prev) <= tol * np.linalg.norm(lam):
                 return lam, InactiveSets(nu, tp, tm), k, True
-            g = self.indicators(lam, w)
+            g = self.indicators(lam, w, rho=rho)
             nu, tp, tm = g[:m] < 0, g[m:2 * m] > 0, g[2 * m:] < 0
             lam_prev = lam
         return lam_prev, InactiveSets(nu, tp, tm), int(max_iter), False

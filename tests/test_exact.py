@@ -813,6 +813,25 @@ def test_frictionless_start_is_a_solution_and_starts_the_same_path():
                                 backend="condensed").stats["start"] == "ssnm"
 
 
+def test_start_by_ssnm_with_another_rho_where_both_homotopies_fail_to_be_quick():
+    """A strip of 40 x 1, 8 cells across, m = 500, random loads at F = 30: SSNM cycles, the
+    homotopy from the frictionless solution is a closed loop back to its start, and the all-open
+    homotopy took more than 28 000 transitions in two minutes without reaching t = 1.  SSNM with
+    another augmentation parameter (rho x 100) converges; its sets are a solution at the system's
+    own rho, which verifies to rounding, and the path from it completes."""
+    import cfcontact.exact as ex
+    from cfcontact import bench_stress
+
+    system = bench_stress.strip(500, 30.0, 1, "random", cells_across=8)
+    solver = cfcontact.CondensedSolver(system)
+    assert solver.ssnm_sets(system.load(0.0), 1e-9, ex.START_SSNM_ITERATIONS) is None
+    ctx = ex._Context(system, solver, cfcontact.PathOptions(), 0.0, 1.0, cfcontact.PathOptions().tie_rtol)
+    assert ex._frictionless_start(ctx, 0.0)[0] is None
+    path = cfcontact.trace_exact(system, 0.0, 1.0, solver=solver)
+    assert path.status == "completed" and path.stats["start"] == "ssnm_rho"
+    assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-9
+
+
 @pytest.mark.parametrize("seed, how", [(213, "frictionless"), (103, "homotopy")])
 def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how, monkeypatch):
     """Lumped models at F = 30 where SSNM fails from every restart of start_point with the full
@@ -828,6 +847,7 @@ def test_seed_method_and_full_backend_start_where_ssnm_fails(seed, how, monkeypa
 
     if how == "homotopy":
         monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
+        monkeypatch.setattr(ex, "START_RHO_FACTORS", ())
     system = random_system(6, seed, friction=30.0)
     with pytest.raises(ConvergenceError):
         start_point(system, 0.0, None, cfcontact.PathOptions(), get_solver(system))
@@ -924,6 +944,7 @@ def test_frictionless_homotopy_goes_on_through_its_folds_below_t_0(monkeypatch):
     assert path.stats["homotopy_transitions"] == seen[-1].transitions > 1
     assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-9
     monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
+    monkeypatch.setattr(ex, "START_RHO_FACTORS", ())
     seen.clear()
     with pytest.raises(cfcontact.StartInterrupted):
         cfcontact.trace_path(system, 0.0, 1.0, method="exact", monitor=lambda p: seen.append(p) or p.stage == "homotopy")
@@ -957,6 +978,7 @@ def test_monitor_sees_and_can_abandon_a_homotopy_start(monkeypatch):
     import cfcontact.exact as ex
 
     monkeypatch.setattr(ex, "FRICTIONLESS_T_MIN", 0.0)
+    monkeypatch.setattr(ex, "START_RHO_FACTORS", ())
     system = random_system(6, 103, friction=30.0)
     ref = cfcontact.trace_path(system, 0.0, 1.0, method="exact", backend="condensed")
     assert ref.stats["start"] == "homotopy" and ref.stats["homotopy_transitions"] >= 3
