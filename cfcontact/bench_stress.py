@@ -124,7 +124,8 @@ def worker(spec) -> dict:
 
     t0 = time.perf_counter()
     if spec["model"] == "strip":
-        system = strip(spec["m"], spec["friction"], spec.get("seed", 0), spec.get("kind", "uniform"))
+        system = strip(spec["m"], spec["friction"], spec.get("seed", 0), spec.get("kind", "uniform"),
+                       spec.get("cells_across", 5))
     elif spec["model"] in ("cylinder", "punch"):
         system = _pressed(spec["model"], spec["friction"], spec.get("size"))
     elif spec["model"] == "closing":
@@ -287,7 +288,8 @@ def run_row(spec, timeout, log=print) -> dict:
 
 def _row_text(r):
     f = lambda k, w=8, p=2: f"{r[k]:>{w}.{p}f}" if isinstance(r.get(k), (int, float)) else f"{'-':>{w}}"  # noqa
-    return (f"{r.get('model', ''):>8} {r.get('kind', ''):>7} {r.get('n', '-'):>7} {r.get('m', '-'):>5} "
+    model = r.get("model", "") + (f"/{r['cells_across']}" if "cells_across" in r else "")
+    return (f"{model:>8} {r.get('kind', ''):>7} {r.get('n', '-'):>7} {r.get('m', '-'):>5} "
             f"{r.get('friction', 0):>5g} {f('assembly_time')} {f('factorization_time')} {f('condensation_time')} "
             f"{f('path_time')} {f('start_time', 6)} {r.get('transitions', '-'):>7} {f('time_per_transition', 9, 4)} "
             f"{r.get('dense_updates', '-'):>7} {r.get('refactorizations', '-'):>6} {f('peak_rss_gib', 6)} "
@@ -565,6 +567,15 @@ def part_d(quick=False, paths=None, time_limit=600.0, log=print, sizes=None, see
                 rows.append(run_row({"model": "strip", "kind": kind, "m": m, "friction": F, "seed": 1,
                                      "time_limit": time_limit, "seed_check": seed_limit}, timeout=timeout, log=log))
                 log("    " + _row_text(rows[-1]))
+    if not quick:
+        # 8 cells across (strip/8): SSNM cycles at alpha = 0 and the frictionless homotopy is a closed
+        # loop; the start comes from SSNM with another rho, before the all-open homotopy (which took
+        # more than 28 000 transitions in two minutes here)
+        log("  strip m = 500, 8 cells across, random tractions, F = 30 ...")
+        rows.append(run_row({"model": "strip", "kind": "random", "m": 500, "friction": 30.0, "seed": 1,
+                             "cells_across": 8, "time_limit": time_limit, "seed_check": seed_limit},
+                            timeout=timeout, log=log))
+        log("    " + _row_text(rows[-1]))
     for model in ("cylinder", "punch"):
         for F in C_FRICTIONS:
             log(f"  {model}, F = {F:g} ...")

@@ -1837,7 +1837,7 @@ def _rho_start(ctx: _Context, alpha):
     solution at the system's own rho; None when none converges to one (or the backend is not
     the condensed one).
 
-    The solutions of (1)-(3) do not depend on rho, SSNM's convergence does: a strip of 40 x 1, 8
+    The solutions of (1)-(3) do not depend on rho, SSNM's convergence does: a strip of 10 x 1, 8
     cells across, m = 500, random loads at F = 30 -- where SSNM cycles, the frictionless homotopy
     is a closed loop back to its start (13 transitions) and the all-open homotopy took more than
     28 000 transitions without reaching t = 1 -- converges in 21 iterations with rho x 100.  It

@@ -814,7 +814,7 @@ def test_frictionless_start_is_a_solution_and_starts_the_same_path():
 
 
 def test_start_by_ssnm_with_another_rho_where_both_homotopies_fail_to_be_quick():
-    """A strip of 40 x 1, 8 cells across, m = 500, random loads at F = 30: SSNM cycles, the
+    """A strip of 10 x 1, 8 cells across, m = 500, random loads at F = 30: SSNM cycles, the
     homotopy from the frictionless solution is a closed loop back to its start, and the all-open
     homotopy took more than 28 000 transitions in two minutes without reaching t = 1.  SSNM with
     another augmentation parameter (rho x 100) converges; its sets are a solution at the system's
