@@ -432,3 +432,33 @@ def test_a_failed_ssnm_start_on_a_long_strip_factors_few_dense_systems(monkeypat
     assert new.stats["homotopy_transitions"] == old.stats["homotopy_transitions"]
     assert np.array_equal(canonical_codes(new.branches[0].sets, system.friction),
                           canonical_codes(old.branches[0].sets, system.friction))
+
+
+def test_each_column_of_an_updated_solve_is_judged_by_its_own_size():
+    """The columns of a branch solve (values, rates) can differ by orders of magnitude.  Judged by
+    the largest, a small column whose first correction was 160 times itself and its second 6 %
+    passed as converged (the contraction looked like 4e-4): on the m = 500 strip at F = 30 with the
+    base refactored every 50 nodes, 4 stored points were 1.3e-9 to 3.7e-9 from (1)-(3) and their
+    alphas 3e-9 off.  Each column is now judged by its own size, and such a branch is solved again
+    from a fresh base: every point within 1e-9 (2e-10 here, as with one base for the whole path)."""
+    from cfcontact.bench_stress import strip
+
+    big, small = 1.0, 1.7e-5
+    Lc = np.array([small, big])
+    # corrections per step and column: the small column's contraction is that of the large one's scale
+    assert not condensed._columns_converged([np.array([160 * small, 2e-4]), np.array([0.063 * small, 1e-12])],
+                                            False, Lc)
+    assert condensed._columns_converged([np.array([1e-3 * small, 2e-4]), np.array([1e-9 * small, 1e-12])],
+                                        False, Lc)
+    assert condensed._columns_converged([np.array([1e-3 * small, 2e-4]), np.array([1e-12 * small, 1e-16])],
+                                        True, Lc)
+    assert condensed._columns_converged([np.array([0.0, 2e-4]), np.array([0.0, 1e-12])], False,
+                                        np.array([0.0, big]))  # a column of zeros
+    system = strip(500, 30.0, seed=1, kind="uniform")
+    solver = CondensedSolver(system)
+    solver._updater = _Updater(solver, max_rank=50)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    assert path.status == "completed" and len(path.transitions) == 208
+    assert solver._updater.reasons.get("column", 0) > 0
+    worst = max(cfcontact.verify(system, y, a, solver=solver).worst() for a, y in path.iter_points(128))
+    assert worst <= 1e-9
