@@ -1788,8 +1788,8 @@ def reach_start(system, alpha, path, options: Optional[PathOptions] = None, moni
     """(sets, how, transitions) of a solution at alpha where SSNM did not converge, reached by the
     exact method in the condensed multipliers (:func:`_reach_start`: from the frictionless solution,
     how = "frictionless", else by SSNM with another rho, "ssnm_rho", else from the all-open state,
-    "homotopy"; ``transitions``: the homotopies'), else -- a numerical failure of both, on a small problem -- by enumeration
-    ("enumeration", an event on ``path``).  ``ctx``: the calling run's context; when its backend
+    "homotopy"; ``transitions``: the homotopies'), else -- a numerical failure of all of these, on a
+    small problem -- by enumeration ("enumeration", an event on ``path``).  ``ctx``: the calling run's context; when its backend
     is not the condensed one (the full PETSc backend, the seed method's), the system's condensed
     solver is formed for the start (K factored, S) and the run goes on with its own backend.
     ConvergenceError when nothing is found."""
