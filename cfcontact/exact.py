@@ -1840,7 +1840,7 @@ def _rho_start(ctx: _Context, alpha):
     The solutions of (1)-(3) do not depend on rho, SSNM's convergence does: a strip of 10 x 1, 8
     cells across, m = 500, random loads at F = 30 -- where SSNM cycles, the frictionless homotopy
     is a closed loop back to its start (13 transitions) and the all-open homotopy took more than
-    28 000 transitions without reaching t = 1 -- converges in 21 iterations with rho x 100.  It
+    28 000 transitions without reaching t = 1 -- converges in 20 iterations with rho x 100.  It
     comes after the frictionless homotopy (a start by rule, and the one the tests and the
     benchmark's counts have always seen first) and before the all-open one, which always ends
     but can take that long."""
