@@ -401,7 +401,7 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
     another solution at alpha = 0 (``seed_own_start``: that run), it is traced from the exact
     path's start point instead."""
     import cfcontact
-    from cfcontact.report import compare_paths
+    from cfcontact.report import branch_states, compare_paths
 
     def seed(h_min, y0=None):
         """(path, its states, info) of one seed run (path and states None when it raised)."""
@@ -412,13 +412,13 @@ def _seed_check(make_system, exact_path, friction, limit) -> dict:
         except cfcontact.CfcontactError as exc:
             return None, None, {"status": "error: " + str(exc)[:120], "time": time.perf_counter() - t0}
         status = "time limit" if p.status == "stopped by callback" else p.status
-        states = _states(p, friction)
+        states = branch_states(p, friction)
         return p, states, {"status": status, "transitions": len(p.transitions), "time": time.perf_counter() - t0,
                            "end_alpha": float(p.alphas[-1]) if len(p.alphas) else None,
                            "unverified": sum(e.kind == "unverified_transition" for e in p.events),
                            "retraces": _retrace(states)}
 
-    exact_states = _states(exact_path, friction)
+    exact_states = branch_states(exact_path, friction)
     h_min = cfcontact.PathOptions().h_min
     path, states, info = seed(h_min)
     out = {"exact_retraces": _retrace(exact_states)}  # (never: a check of the exact path)
@@ -489,23 +489,16 @@ def _summary(recs) -> dict:
             **_seed_summary(recs)}
 
 
-def _states(path, friction) -> list:
-    """The state of every node on each of the path's branches (canonical codes, as lists)."""
-    from cfcontact.exact import canonical_codes
-
-    return [canonical_codes(b.sets, friction).tolist() for b in path.branches]
-
-
 def _retrace(states):
-    """The first transition j of a path (``states``: :func:`_states`) after which its branch has
-    the sets of the branch before transition j - 1: the path undid its last set change and runs
-    back along itself (the states of a continuous piecewise-affine path never do; None when the
-    path does not)."""
+    """The first transition j of a path (``states``: :func:`cfcontact.report.branch_states`) after
+    which its branch has the sets of the branch before transition j - 1: the path undid its last
+    set change and runs back along itself (the states of a continuous piecewise-affine path never
+    do; None when the path does not)."""
     return next((j for j in range(1, len(states) - 1) if states[j + 1] == states[j - 1]), None)
 
 
 def _first_state_difference(seed_states, exact_states) -> int:
-    """The first transition after which two paths' branches (their :func:`_states`) have
+    """The first transition after which two paths' branches (their :func:`cfcontact.report.branch_states`) have
     different sets (-1: their first branches differ; the length of the shorter path: one path is
     the other's beginning)."""
     pairs = zip(seed_states, exact_states)

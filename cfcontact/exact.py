@@ -1548,6 +1548,13 @@ def _form_under_mpi(path, solver):
 
 
 # ---------------------------------------------------------------------- start
+def _not_a_solution(ln) -> bool:
+    """Does a branch (its constraints' values c at its reference point, their zero tolerance tol_v,
+    its indicators g) violate a constraint there beyond rounding (and 1e-8 of its indicators)?  Its
+    states are then no solution at that point."""
+    return bool(np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))))
+
+
 def _ssnm_start(ctx: _Context, alpha, y0):
     """Sets of SSNM's solution at alpha, or None when SSNM does not converge.  With the condensed
     backend SSNM gets at most START_SSNM_ITERATIONS iterations (it converges in a few when it
@@ -1631,7 +1638,7 @@ def _homotopy(ctx: _Context, alpha, w0, w, codes, stage, monitor=None, n0=0, t_m
     hctx.E, hctx.data.WE = ctx.E, data.WE
     path = SolutionPath.for_system(ctx.system, "exact", 0.0, 1.0, {})
     ln = hctx.line(codes, 0.0)
-    if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+    if _not_a_solution(ln):
         return None, 0
     ln, s = _leave_start(hctx, path, codes, 0.0, 1)
     walk = _Walk.begin(hctx, path, ln, s, 0.0)
@@ -1674,7 +1681,7 @@ def _start(ctx: _Context, path, alpha, s, y0, start_sets, monitor=None):
             raise InputError(f"start_sets must be InactiveSets of length m = {system.m}, got {start_sets!r}")
         codes = _canon(system, start_sets)
         ln = ctx.line(codes, alpha)
-        if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+        if _not_a_solution(ln):
             raise InputError(f"start_sets {start_sets} are not consistent at alpha_start={alpha}: "
                              f"DirNeu(start_sets, f(alpha_start)) is not a solution")
         how = "start_sets"
@@ -1855,7 +1862,7 @@ def _rho_start(ctx: _Context, alpha):
             continue
         codes = _canon(system, sets)
         ln = ctx.line(codes, alpha)
-        if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+        if _not_a_solution(ln):
             log.info("SSNM with rho x %g converged at alpha=%g to sets that are no solution at the system's rho",
                      factor, alpha)
             continue

@@ -47,6 +47,7 @@ from cfcontact.exact import (
     STICK,
     _Context,
     _digest,
+    _not_a_solution,
     _reach_start,
     _resolve,
     _Unresolved,
@@ -448,7 +449,7 @@ class FrictionStepper(_FStepper):
     def _leave_start(self, codes, F, s):
         ctx = self.ctx
         ln = ctx.line(codes, F)
-        if np.any(ln.c < -np.maximum(ln.tol_v, 1e-8 * np.abs(ln.g).max(initial=0.0))):
+        if _not_a_solution(ln):
             raise ConvergenceError(f"the start states are not consistent at F={F} (alpha={self.alpha})")
         dec = ((np.abs(ln.c) <= ln.tol_v) & (s * ln.dc < -ln.tol_s)).nonzero()[0]
         if not dec.size:

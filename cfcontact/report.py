@@ -32,8 +32,6 @@ def compare_paths(seed, exact, friction) -> dict:
     same sequence of set changes (node, set, kind)?  Transition alphas within the seed's h_min?
     The same sequence of branch sets (``same_branch_sets``: where several nodes change at one
     alpha, the seed method names one of them)?"""
-    from cfcontact.exact import canonical_codes
-
     ks = [(t.node, t.set, t.kind) for t in seed.transitions]
     ke = [(t.node, t.set, t.kind) for t in exact.transitions]
     h_min = float(seed.options.get("h_min", 1e-5))
@@ -42,13 +40,20 @@ def compare_paths(seed, exact, friction) -> dict:
     in_bracket = all(s.bracket[0] - 1e-12 <= e.alpha <= s.bracket[1] + 1e-12
                      for s, e in zip(seed.transitions, exact.transitions))
     first = next((i for i, (a, b) in enumerate(zip(ks, ke)) if a != b), None if same else min(len(ks), len(ke)))
-    sets_s = [canonical_codes(b.sets, friction).tolist() for b in seed.branches]
-    sets_e = [canonical_codes(b.sets, friction).tolist() for b in exact.branches]
     return {"same_set_changes": same, "first_difference": first, "h_min": h_min,
             "max_alpha_difference": max(diffs, default=0.0),
             "alphas_within_h_min": bool(same and all(d <= h_min for d in diffs)),
             "exact_alpha_in_seed_bracket": bool(same and in_bracket),
-            "same_branch_sets": sets_s == sets_e}
+            "same_branch_sets": branch_states(seed, friction) == branch_states(exact, friction)}
+
+
+def branch_states(path, friction) -> list:
+    """The state of every node on each of the path's branches (canonical codes, as lists): two
+    paths with equal lists pass through the same sequence of sets, whatever node names their
+    transitions give."""
+    from cfcontact.exact import canonical_codes
+
+    return [canonical_codes(b.sets, friction).tolist() for b in path.branches]
 
 
 # ------------------------------------------------------------------ contact pairing
