@@ -1218,6 +1218,8 @@ class CondensedSolver:
         of (1)-(3) do not depend on it, SSNM's convergence does; the sets returned are those of
         the indicators at ``rho``, which are the system's own except where an indicator vanishes
         at the solution (a tie: the caller checks them at the system's rho)."""
+        if rho is not None and not (np.isfinite(rho) and rho > 0):
+            raise InputError(f"rho must be a positive finite number (SSNM's augmentation parameter), got {rho!r}")
         m = self.m
         Z0 = InactiveSets(np.zeros(m, bool), np.zeros(m, bool), np.zeros(m, bool))
         lam, Z, k, converged = self._ssnm_lam(self.load_data(f), Z0, np.zeros(2 * m), tol, max_iter, rho)

@@ -192,3 +192,13 @@ def test_a_worker_that_reported_nothing_prints_as_failed():
     text = _row_text({"model": "strip", "kind": "uniform", "friction": 0.3, "returncode": 1, "stage": None,
                       "worst_residual": None, "error": ""})
     assert text.rstrip().endswith("nan      - failed (rc 1)          -")  # (no seed method run: -)
+
+
+def test_a_strip_row_with_other_cells_across_is_named_by_them():
+    """Part D's strip 8 cells across (its start: SSNM with another rho) prints as strip/8, the
+    strips of the default 5 cells across as strip."""
+    from cfcontact.bench_stress import _row_text
+
+    row = {"model": "strip", "kind": "random", "friction": 30.0, "status": "completed", "worst_residual": 1e-12}
+    assert _row_text(dict(row, cells_across=8)).split()[0] == "strip/8"
+    assert _row_text(row).split()[0] == "strip"

@@ -830,6 +830,9 @@ def test_start_by_ssnm_with_another_rho_where_both_homotopies_fail_to_be_quick()
     path = cfcontact.trace_exact(system, 0.0, 1.0, solver=solver)
     assert path.status == "completed" and path.stats["start"] == "ssnm_rho"
     assert cfcontact.verify(system, path.point_y(0), 0.0).worst() < 1e-9
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(cfcontact.InputError, match="rho must be a positive finite number"):
+            solver.ssnm_sets(system.load(0.0), 1e-9, 5, rho=bad)
 
 
 @pytest.mark.parametrize("seed, how", [(213, "frictionless"), (103, "homotopy")])
