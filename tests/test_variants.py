@@ -381,19 +381,35 @@ def test_exact_transition_onto_a_branch_whose_crossed_constraint_has_no_rate():
             assert cfcontact.verify(system, path.branch_y(b, t.alpha), t.alpha).worst() < 1e-10
 
 
+#: Cylinders at F = 30 (indentation, mesh size) whose exact path meets a branch point where a fold
+#: alternative goes back (by ~1e-14 in alpha) into the branch the main path came from.  Whether
+#: the two roots there count as one point is decided by rounding, which differs between CPUs
+#: (the first case has no branch point on an AMD EPYC with FMA): the test needs one of them.
+JOINING_CYLINDERS = [((0.008018832492423484, 0.01619364866998529), 0.05992678918563923),
+                     ((0.0030592123670732446, 0.015597919352438695), 0.0552169707954613),
+                     ((0.009252939380762389, 0.015846392132820734), 0.05724906995109625),
+                     ((0.00889630155447081, 0.014004277168842453), 0.04308335234002155)]
+
+
 def test_a_tree_alternative_that_runs_into_the_tree_ends_joined():
-    """A cylinder at F = 30 whose exact path has one branch point (alpha ~ 0.9194): the fold
-    alternative goes back 2e-14 in alpha and enters the branch the main path came from.  In a tree
-    that is where the alternative joins the tree: status "joined", and a "joined" event -- not the
-    "cycling" event of a path revisiting its own branch ("a numerical inconsistency"), which
-    `cfcontact info` listed."""
-    system = cfcontact.cylinder_on_block(friction=30.0, indentation=(0.008018832492423484, 0.01619364866998529),
-                                         cell="triangle", size=0.05992678918563923)
-    tree = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
-    assert tree.status == "completed"
-    kinds = [e.kind for e in tree.events]
-    assert kinds.count("branch_point") == 1 and "cycling" not in kinds and kinds.count("joined") == 1
-    (bp,) = [e for e in tree.events if e.kind == "branch_point"]
-    assert [r["status"] for r in bp.data["followed"].values()] == ["joined"]
-    joined = tree.events[kinds.index("joined")]
-    assert "reaches a branch of the tree" in joined.message and joined.data["first_alpha"] < joined.alpha
+    """Cylinders at F = 30 whose exact path has a branch point: the fold alternative goes back a
+    few 1e-14 in alpha and enters the branch the main path came from.  In a tree that is where
+    the alternative joins the tree: status "joined", and a "joined" event -- not the "cycling"
+    event of a path revisiting its own branch ("a numerical inconsistency"), which `cfcontact
+    info` listed."""
+    met = 0
+    for indentation, size in JOINING_CYLINDERS:
+        system = cfcontact.cylinder_on_block(friction=30.0, indentation=indentation, cell="triangle", size=size)
+        tree = cfcontact.trace_path(system, 0.0, 1.0, method="exact", tree=True)
+        assert tree.status == "completed"
+        kinds = [e.kind for e in tree.events]
+        assert "cycling" not in kinds, tree.events
+        if "branch_point" not in kinds:
+            continue
+        met += 1
+        assert kinds.count("branch_point") == 1 and kinds.count("joined") == 1, kinds
+        (bp,) = [e for e in tree.events if e.kind == "branch_point"]
+        assert [r["status"] for r in bp.data["followed"].values()] == ["joined"]
+        joined = tree.events[kinds.index("joined")]
+        assert "reaches a branch of the tree" in joined.message and joined.data["first_alpha"] < joined.alpha
+    assert met, "no case met its branch point"
