@@ -246,6 +246,36 @@ def _lu_solve(lu, piv, B, trans=0):
 
 
 @dataclass
+class PathLoads:
+    """Loads of the system's path f(alpha) = (1 - alpha) f1 + alpha f2 given by their exact
+    coefficients on (f1, f2): columns of ``coef`` (3 x k: 1 - alpha as a double-double pair, and
+    alpha; a rate column f2 - f1 is (-1, 0, 1)).  Solves with K that take them
+    (:meth:`CondensedSolver.true_rows`, :meth:`~CondensedSolver.displacements`) form the
+    residual f - K u - B^T lam with f's products and sums exact: on a slender body at F = 30 the
+    rounding of f(alpha) in double, carried by K^-1 to B u, left a branch's point 7e-10 (relative)
+    from its gap once its reference was moved along the branch, where the consistent point had
+    9e-11."""
+
+    def __init__(self, values=(), rates: int = 0):
+        a = np.asarray(values, dtype=float).ravel()
+        hi = 1.0 - a
+        v = hi - 1.0  # two-sum of 1 and -alpha: 1 - alpha = hi + lo exactly
+        lo = (1.0 - (hi - v)) + (-a - v)
+        rate = np.tile(np.array([[-1.0], [0.0], [1.0]]), (1, int(rates)))
+        self.coef = np.concatenate([np.vstack([hi, lo, a]), rate], axis=1)
+
+    def vectors(self, f1: np.ndarray, f2: np.ndarray) -> np.ndarray:
+        """The loads in double (n x k) from (local rows of) f1, f2."""
+        c = self.coef
+        return np.outer(f1, c[0] + c[1]) + np.outer(f2, c[2])
+
+    def take(self, cols) -> "PathLoads":
+        """The columns ``cols``."""
+        out = PathLoads()
+        out.coef = self.coef[:, cols]
+        return out
+
+
 class CondensedStats(SolverStats):
     """SolverStats plus the dense work: factorizations / linear_solves count sparse work on K
     (one solve per right-hand side, the 2m columns of K^-1 B^T included)."""
@@ -365,6 +395,8 @@ class CondensedSolver:
         if S is None and schur:
             raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
         self._K_exact = None  # K's local rows for the refinement's residuals (linalg.ExactResidual)
+        self._KB_exact = None  # ... and [K, B^T]'s, for residuals exact in the multipliers too
+        self._KBF_exact = None  # ... and [K, B^T, -f1, -f1, -f2]'s, exact in the path's loads (PathLoads)
         #: steps of iterative refinement applied to every solve with K (see REFINE_RTOL), and the
         #: relative correction of B x that the first step made on the set-up's probe solve (None:
         #: no probe)
@@ -530,24 +562,48 @@ class CondensedSolver:
                  "residuals to %.1e", corrections[0], steps, c)
         return steps, corrections[0], c
 
-    def _kresidual(self, b: np.ndarray, x_local: np.ndarray) -> np.ndarray:
+    def _kresidual(self, b: np.ndarray, x_local: np.ndarray, lam: Optional[np.ndarray] = None,
+                   coef: Optional[np.ndarray] = None) -> np.ndarray:
         """b - K x (local rows; x: local rows of one vector or of the columns of a matrix),
-        computed in double-double arithmetic and rounded to double."""
-        if self._K_exact is None:
-            self._K_exact = linalg.ExactResidual(self.K_local)
-        return self._K_exact(b, linalg.concat_ranks(self.comm, x_local))
+        computed in double-double arithmetic and rounded to double.  With ``lam`` (2m, or 2m x k
+        as x): b - K x - B^T lam, B^T lam's products and sums in the same arithmetic -- not
+        b - B^T lam formed in double first, whose rounding (of f against the contact forces
+        that nearly cancel it) K^-1 carries to B u as noise that no correction of lam can reduce.
+        With ``coef`` (3 x k, :class:`PathLoads`; b is then not used): f - K x - B^T lam for the
+        path's loads f = f1 (coef[0] + coef[1]) + f2 coef[2], exact as well."""
+        x = linalg.concat_ranks(self.comm, x_local)
+        if lam is None:
+            if self._K_exact is None:
+                self._K_exact = linalg.ExactResidual(self.K_local)
+            return self._K_exact(b, x)
+        lam = np.asarray(lam, dtype=float).reshape((-1,) + x.shape[1:])
+        if coef is None:
+            if self._KB_exact is None:
+                self._KB_exact = linalg.ExactResidual(sp.hstack([self.K_local, self.B_local.T], format="csr"))
+            return self._KB_exact(b, np.concatenate([x, lam]))
+        if self._KBF_exact is None:
+            f1, f2 = self.system.loads_numpy()
+            f1l, f2l = f1[self.r0:self.r1], f2[self.r0:self.r1]
+            F = sp.csr_matrix(-np.column_stack([f1l, f1l, f2l]))
+            self._KBF_exact = linalg.ExactResidual(sp.hstack([self.K_local, self.B_local.T, F], format="csr"))
+        coef = np.asarray(coef, dtype=float).reshape((3,) + x.shape[1:])
+        return self._KBF_exact(np.zeros(x_local.shape), np.concatenate([x, lam, coef]))
 
-    def _ksolve_refined(self, rhs_local: np.ndarray) -> np.ndarray:
-        """K^-1 rhs (local rows of one vector), refined with self.refine_steps steps."""
-        x = self._ksolve(rhs_local)
+    def _ksolve_refined(self, rhs_local: np.ndarray, lam: Optional[np.ndarray] = None) -> np.ndarray:
+        """K^-1 rhs (local rows of one vector), refined with self.refine_steps steps; with
+        ``lam``: K^-1 (rhs - B^T lam), the residuals exact in lam (see :meth:`_kresidual`)."""
+        x = self._ksolve(rhs_local if lam is None else rhs_local - self.B_local.T @ lam)
         for _ in range(self.refine_steps + self.polish_steps):
-            x += self._ksolve(self._kresidual(rhs_local, x))
+            x += self._ksolve(self._kresidual(rhs_local, x, lam))
         return x
 
-    def _refine_columns(self, X: np.ndarray, rhs) -> np.ndarray:
+    def _refine_columns(self, X: np.ndarray, rhs, lams: Optional[np.ndarray] = None,
+                        coef: Optional[np.ndarray] = None) -> np.ndarray:
         """X = K^-1 rhs (local rows, nloc x k), corrected in place by self.refine_steps steps
-        (and polish_steps), in blocks of columns; ``rhs``: the right-hand sides (nloc x k).
-        Collective under MPI."""
+        (and polish_steps), in blocks of columns; ``rhs``: the right-hand sides (nloc x k).  With
+        ``lams`` (2m x k): X = K^-1 (rhs - B^T lams), the residuals exact in lams, and with
+        ``coef`` (3 x k, :class:`PathLoads`) in the path's loads, which rhs then are (see
+        :meth:`_kresidual`).  Collective under MPI."""
         steps = self.refine_steps + self.polish_steps
         if not steps or X.shape[1] == 0:
             return X
@@ -555,8 +611,10 @@ class CondensedSolver:
         block = max(1, REFINE_BLOCK_ENTRIES // max(self.n, 1))  # self.n: the same on every rank
         for c0 in range(0, k, block):
             sl = slice(c0, min(k, c0 + block))
+            lam = None if lams is None else lams[:, sl]
+            c = None if coef is None else coef[:, sl]
             for _ in range(steps):
-                X[:, sl] += self._ksolve_dense(np.asfortranarray(self._kresidual(rhs[:, sl], X[:, sl])))
+                X[:, sl] += self._ksolve_dense(np.asfortranarray(self._kresidual(rhs[:, sl], X[:, sl], lam, c)))
         return X
 
     def _s_exact(self, V: np.ndarray, loads=()) -> tuple:
@@ -831,17 +889,21 @@ class CondensedSolver:
 
     def against_K(self, W, L, G, imposed, true, correction) -> tuple:
         """(L, G) of a branch (data W, multipliers L, indicators G, equation rows ``imposed``)
-        with its equations solved against K: R = :meth:`true_rows` (``true`` = (loads, gap)), and
-        while the equations' residual rho R[imposed] exceeds POLISH_RTOL of the indicators (per
-        column), L += correction(R, L) (the branch's own solve; at most POLISH_MAX_STEPS, and only
-        while each halves the residual: below that it is rounding).  G then reads the free rows
-        of B u from the last R, which belongs to the returned L: no product with S.
-        A correction that fails to halve the residual is thrown away, and when it came after one
-        that did, the residual it started from is the measure's rounding floor (``polish_floor``,
-        relative to the size of the terms that make B u: rho max(|W|, sum_j max_i |S_ij| |L_j|);
-        the smallest seen): once a correction has brought the residual within twice that floor, no
-        further one is tried.  (The m = 4000 strip at F = 30: every branch's first correction
-        left 1.0-1.2 times POLISH_RTOL, and a second, thrown away, cost a fifth of the branch.)"""
+        with its equations solved against K: R = :meth:`true_rows` (``true`` = (loads, gap):
+        full load vectors, a callable returning them, or :class:`PathLoads`), and while the
+        equations' residual rho R[imposed] of a column exceeds POLISH_RTOL of that column's own
+        size (its multipliers and rho times its free rows of B u, as (1)-(3) are measured),
+        L += correction(R, L, cols) for those columns (the branch's own solve, its right-hand
+        side R itself; at most POLISH_MAX_STEPS, and only while each halves the column's
+        residual: below that it is rounding).  G then reads the free rows of B u from the last R,
+        which belongs to the returned L: no product with S.
+        A correction that fails to halve a column's residual is thrown away, and when it came
+        after one that did, the residual it started from is the measure's rounding floor
+        (``polish_floor``, relative to the size of the terms that make the column's B u: rho
+        max(|W_j|, sum_i max_k |S_ki| |L_ij|); the smallest seen): once a correction has brought
+        a column within twice that floor, no further one is tried.  (The m = 4000 strip at
+        F = 30: every branch's first correction left 1.0-1.2 times POLISH_RTOL, and a second,
+        thrown away, cost a fifth of the branch.)"""
         if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
             self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
         loads, gap = true
@@ -849,42 +911,70 @@ class CondensedSolver:
             loads = loads()
         rho = self.system.rho
 
-        def measure(L):
-            R = self.true_rows(loads, L, gap)
+        gap = np.asarray(gap, dtype=bool).reshape(-1)
+
+        def measure(L, cols):
+            some = loads.take(cols) if isinstance(loads, PathLoads) else None if loads is None else loads[:, cols]
+            R = self.true_rows(some, L, gap[cols])
             return R, rho * np.abs(R[imposed]).max(axis=0, initial=0.0)
 
-        R, res = measure(L)
-        size = np.abs(G).max(axis=0, initial=0.0)
+        every = np.arange(L.shape[1])
+        R, res = measure(L, every)
+        # each column's own size, as (1)-(3) are measured: its multipliers and rho times its free
+        # rows of B u (not G, whose slip indicators hold F lam_n: at F = 30 thirty times the point)
+        size = np.maximum(np.abs(L).max(axis=0, initial=0.0),
+                          rho * np.abs(R[~imposed]).max(axis=0, initial=0.0))
         scale = POLISH_RTOL * size
         if (res > scale).any() and not self.true_always:
             self.true_always = True
             log.info("a branch's equations are off by %.1e of its indicators in solves with K: from now on every "
                      "branch is corrected against K", float((res / np.maximum(size, 1e-300)).max()))
-        terms = rho * max(np.abs(W).max(initial=0.0), float(self._colmax() @ np.abs(L).max(axis=1, initial=0.0)))
+        # the size of the terms that make each column's B u (the floor's reference)
+        terms = rho * np.maximum(np.abs(W).max(axis=0, initial=0.0), self._colmax() @ np.abs(L))
+        rel = res / np.maximum(terms, 1e-300)
+        active = res > scale
+        if self.polish_floor is not None:  # within twice the measure's rounding: nothing to gain
+            active &= rel > 2.0 * self.polish_floor
+        worked = np.zeros(L.shape[1], dtype=bool)
+        L, R = L.copy(), R.copy()
         for step in range(POLISH_MAX_STEPS):
-            if (res <= scale).all():
+            cols = active.nonzero()[0]
+            if not cols.size:
                 break
-            rel = float(res.max()) / max(terms, 1e-300)
-            if step and self.polish_floor is not None and rel <= 2.0 * self.polish_floor:
-                break  # within the measure's rounding: a further correction would be thrown away
-            L1 = L + correction(R, L)
-            self.stats.dense_solves += L.shape[1]
-            R1, res1 = measure(L1)
-            if not res1.max() < 0.5 * res.max():
-                if step:  # (after a correction that worked: the floor, not a correction gone wrong)
-                    self.polish_floor = rel if self.polish_floor is None else min(self.polish_floor, rel)
-                break
-            L, R, res = L1, R1, res1
+            L1 = L[:, cols] + correction(R[:, cols], L[:, cols], cols)
+            self.stats.dense_solves += cols.size
+            R1, res1 = measure(L1, cols)
+            # each column judged by its own residual: one that does not halve keeps its last L
+            better = res1 < 0.5 * res[cols]
+            floor = cols[~better & worked[cols]]  # after a correction that worked: the floor
+            if floor.size:
+                f = float(rel[floor].min())
+                self.polish_floor = f if self.polish_floor is None else min(self.polish_floor, f)
+            ok = cols[better]
+            L[:, ok], R[:, ok], res[ok] = L1[:, better], R1[:, better], res1[better]
+            rel[ok] = res[ok] / np.maximum(terms[ok], 1e-300)
+            worked[ok] = True
+            active[cols[~better]] = False
+            active &= res > scale
+            if self.polish_floor is not None:
+                active &= rel > 2.0 * self.polish_floor
         self.stats.true_corrections += 1
-        return L, self._ind(L, W, W - R, imposed)
+        return L, self._ind(L, R, np.zeros_like(R), imposed)  # (not W - (W - R): R below W's rounding)
 
     def true_rows(self, loads: np.ndarray, L: np.ndarray, gap) -> np.ndarray:
         """B u_j - (g; 0) gap_j for u_j = K^-1 (loads_j - B^T L_j), the columns of ``loads`` (full
-        vectors, n x c) and of L (2m x c), by refined solves: the rows of B u that w_j - S L_j
+        vectors, n x c, or :class:`PathLoads`) and of L (2m x c), by refined solves whose
+        residuals are exact in L (and in PathLoads' loads): the rows of B u that w_j - S L_j
         stands for, without S's error.  ``gap``: per column, whether its data include the gap (a
         value; not a rate).  Collective under MPI."""
-        rhs = np.asfortranarray(loads[self.r0:self.r1] - self.B_local.T @ L)
-        X = self._refine_columns(self._ksolve_dense(rhs), rhs)
+        coef = None
+        if isinstance(loads, PathLoads):
+            f1, f2 = self.system.loads_numpy()
+            coef = loads.coef
+            fl = loads.vectors(f1[self.r0:self.r1], f2[self.r0:self.r1])
+        else:
+            fl = np.asfortranarray(loads[self.r0:self.r1])
+        X = self._refine_columns(self._ksolve_dense(np.asfortranarray(fl - self.B_local.T @ L)), fl, L, coef)
         R = self._allreduce(np.ascontiguousarray(self.B_local @ X))
         if self.system.has_gap:
             R[:self.m] -= np.outer(self.system.gap, np.asarray(gap, dtype=float))
@@ -1116,7 +1206,7 @@ class CondensedSolver:
         Wr = W[rows]
 
         def expand(x):  # free unknowns -> (lam_n, lam_t), and S times it
-            full = np.zeros((2 * m, c))
+            full = np.zeros((2 * m, x.shape[1]))
             full[rows] = x
             if slip.size:
                 full[tslip] = coef_c * x[pos]
@@ -1134,7 +1224,7 @@ class CondensedSolver:
         G = self._ind(L, W, SL, imposed)
         if true is not None and self.needs_true(W, G, L):  # the equations' residual from solves with K
             L, G = self.against_K(W, L, G, imposed, true,
-                                  lambda R, L: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
+                                  lambda R, L, c: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
         if not refine:
             return L, G
         return L, G, np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
@@ -1307,7 +1397,7 @@ class CondensedSolver:
 
     def displacement(self, f: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """u = K^-1 (f - B^T lam), whole on every rank (one sparse solve)."""
-        u_loc = self._ksolve_refined(f[self.r0:self.r1] - self.B_local.T @ lam)
+        u_loc = self._ksolve_refined(np.asarray(f[self.r0:self.r1], dtype=float), lam)
         return linalg.concat_ranks(self.comm, u_loc)
 
     def displacements(self, lams: np.ndarray, alphas) -> np.ndarray:
@@ -1336,9 +1426,10 @@ class CondensedSolver:
         for c0 in range(0, k, block):
             sl = slice(c0, min(k, c0 + block))
             a = alphas[sl]
-            rhs = np.outer(f1l, 1.0 - a) + np.outer(f2l, a)
-            rhs -= BT @ lams[:, sl]
-            U = self._refine_columns(self._ksolve_dense(np.asfortranarray(rhs)), rhs)
+            pl = PathLoads(a)
+            fa = pl.vectors(f1l, f2l)
+            U = self._refine_columns(self._ksolve_dense(np.asfortranarray(fa - BT @ lams[:, sl])), fa, lams[:, sl],
+                                     pl.coef)
             out[:, sl] = linalg.concat_ranks(self.comm, U)
         return out
 
@@ -1977,7 +2068,7 @@ class _Updater:
         G = s._ind(L, W, SL, imposed)
         if true is not None and s.needs_true(W, G, L):  # the equations' residual from solves with K
             L, G = s.against_K(W, L, G, imposed, true,
-                               lambda R, L: solve(_scaled_residual(types, W, L, W - R, self.rho)))
+                               lambda R, L, c: solve(_scaled_residual(types, R, L, np.zeros_like(R), self.rho)))
         if not refine:
             return L, G
         return L, G, Eg

@@ -335,6 +335,14 @@ class _CondensedData:
         # the loads (f1, f2) whose data W are: with them a branch whose data's rounding can reach
         # its multipliers is corrected against K (condensed.POLISH_RTOL); None (a homotopy's data)
         self.loads = loads
+        # ... given to the corrections by their exact coefficients when they are the solver's own
+        # path loads (condensed.PathLoads: no rounding of f(alpha) in B u)
+        own = solver.system.loads_numpy() if loads is not None else None
+        self.path_loads = None
+        if own is not None and all(np.array_equal(a, b) for a, b in zip(own, loads)):
+            from cfcontact.condensed import PathLoads
+
+            self.path_loads = PathLoads
         self.dw = self.w2 - self.w1
         self.rho = solver.system.rho
         self.WE = None  # perturbation data B K^-1 E (2m x J)
@@ -371,7 +379,8 @@ class _CondensedData:
         true = None
         if self.loads is not None:  # (the loads of W's columns: f(alpha) and the rate f2 - f1)
             f1, f2 = self.loads
-            true = (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1]), (True, False))
+            true = ((self.path_loads([alpha], rates=1) if self.path_loads else
+                     (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1]))), (True, False))
         L, G, Eg = self.solver.branch_data(W, key, codes, refine=True, true=true)
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'

@@ -320,7 +320,7 @@ def test_corrections_against_K_stop_at_the_rounding_floor_they_have_measured(str
     solver.true_rows = true_rows
     W = np.zeros((m2, 2))
     G = np.full((3 * strip.m, 2), 1e3)
-    correction = lambda R, L: -np.where(imposed[:, None], R * rho * 1e2, 0.0)  # noqa: E731 (exact step)
+    correction = lambda R, L, cols: -np.where(imposed[:, None], R * rho * 1e2, 0.0)  # noqa: E731 (exact step)
     L0 = lam_star + np.where(imposed[:, None], 1.0, 0.0)  # rho |R| = 1e-2 at first
     L1, _ = solver.against_K(W, L0, G, imposed, (None, np.zeros(2)), correction)
     assert len(calls) == 3 and solver.polish_floor is not None  # the second correction: thrown away
@@ -331,3 +331,61 @@ def test_corrections_against_K_stop_at_the_rounding_floor_they_have_measured(str
     for L in (L1, L2):  # corrected to the rounding (a step of 1 in the imposed rows, left: 0.3)
         assert np.abs(L - lam_star)[imposed].max() < 0.31
         np.testing.assert_array_equal(L[~imposed], L0[~imposed])
+
+
+def test_path_loads_carry_one_minus_alpha_exactly():
+    """PathLoads: 1 - alpha as a double-double pair (hi + lo equal to it in rational arithmetic,
+    where fl(1 - alpha) is not), alpha itself, and (-1, 0, 1) for a rate column f2 - f1."""
+    alphas = [0.11603012497040813, 1e-17, 0.3, 0.7, 1.0, 0.0, 2.5e-9]
+    c = condensed.PathLoads(alphas, rates=2).coef
+    assert c.shape == (3, len(alphas) + 2)
+    for j, a in enumerate(alphas):
+        assert Fraction(c[0, j]) + Fraction(c[1, j]) == 1 - Fraction(a) and c[2, j] == a
+    assert Fraction(1.0 - alphas[0]) != 1 - Fraction(alphas[0])  # what the pair is for
+    np.testing.assert_array_equal(c[:, -2:], [[-1.0, -1.0], [0.0, 0.0], [1.0, 1.0]])
+    np.testing.assert_array_equal(condensed.PathLoads(alphas).take([1, 3]).coef, c[:, [1, 3]])
+
+
+def test_refinement_residual_is_exact_in_the_multipliers_and_the_path_loads(strip):
+    """The residual that refines u = K^-1 (f(alpha) - B^T lam) is f(alpha) - K u - B^T lam with
+    every product and sum exact (rounded once), f(alpha) = (1 - alpha) f1 + alpha f2 from
+    PathLoads' coefficients: against rational arithmetic, where forming f(alpha) - B^T lam in
+    double first is off by far more."""
+    solver = CondensedSolver(strip, SolverOptions(refine=True))
+    n, m = strip.n, strip.m
+    rng = np.random.default_rng(11)
+    alpha = 0.11603012497040813
+    lam = rng.standard_normal(2 * m) * 1e5
+    f1, f2 = strip.loads_numpy()
+    u = solver.displacements(lam[:, None], [alpha])[:, 0]
+    coef = condensed.PathLoads([alpha]).coef[:, 0]
+    r = solver._kresidual(None, u, lam, coef)
+    A = sp.hstack([solver.K_local, solver.B_local.T], format="csr")
+    x = [Fraction(v) for v in np.concatenate([u, lam])]
+    c1, c2 = Fraction(1) - Fraction(alpha), Fraction(alpha)
+    exact = np.array([float(Fraction(f1[i]) * c1 + Fraction(f2[i]) * c2
+                            - sum(Fraction(A.data[k]) * x[A.indices[k]] for k in range(A.indptr[i], A.indptr[i + 1])))
+                      for i in range(n)])
+    scale = np.abs(exact).max()
+    assert np.abs(r - exact).max() <= 2.3e-16 * scale
+    plain = solver._kresidual((1.0 - alpha) * f1 + alpha * f2 - solver.B_local.T @ lam, u)
+    assert np.abs(plain - exact).max() > 1e3 * np.abs(r - exact).max()  # what it is for
+    # u is that residual's solution to its own rounding: one more step changes it by at most that
+    d = solver._ksolve(r)
+    assert np.abs(d).max() <= 4 * np.finfo(float).eps * np.abs(u).max()
+
+
+def test_slender_strip_at_F_30_keeps_every_stored_point_within_its_rounding():
+    """A strip of L/H = 14, 5 cells across (m = 700), uniform tractions at F = 30, whose
+    transition points came out 1.2e-9 to 1.7e-9 from (1)-(3) while the corrections against K
+    formed f(alpha) - B^T lam in double and took their right-hand side as w - (w - R) (R below
+    w's rounding): every stored point is now within 5e-10 (1.4e-10 measured)."""
+    from cfcontact.bench_stress import strip as make_strip
+    from cfcontact.report import worst_residual
+
+    system = make_strip(700, 30.0, seed=2, kind="uniform", cells_across=5)
+    solver = CondensedSolver(system)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+    assert path.status == "completed" and len(path.transitions) == 5
+    assert solver.refine_steps >= 1 and solver.stats.true_corrections > 0
+    assert worst_residual(system, path, solver) < 5e-10
