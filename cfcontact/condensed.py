@@ -245,7 +245,6 @@ def _lu_solve(lu, piv, B, trans=0):
     return _by_columns(lambda Y: _getrs(lu, piv, Y, trans=trans)[0], lu.shape[0], B)
 
 
-@dataclass
 class PathLoads:
     """Loads of the system's path f(alpha) = (1 - alpha) f1 + alpha f2 given by their exact
     coefficients on (f1, f2): columns of ``coef`` (3 x k: 1 - alpha as a double-double pair, and
@@ -276,6 +275,7 @@ class PathLoads:
         return out
 
 
+@dataclass
 class CondensedStats(SolverStats):
     """SolverStats plus the dense work: factorizations / linear_solves count sparse work on K
     (one solve per right-hand side, the 2m columns of K^-1 B^T included)."""
