@@ -395,8 +395,10 @@ class CondensedSolver:
         if S is None and schur:
             raise SingularSystemError("the Schur complement of K could not be read from MUMPS (schur=True)")
         self._K_exact = None  # K's local rows for the refinement's residuals (linalg.ExactResidual)
-        self._KB_exact = None  # ... and [K, B^T]'s, for residuals exact in the multipliers too
-        self._KBF_exact = None  # ... and [K, B^T, -f1, -f1, -f2]'s, exact in the path's loads (PathLoads)
+        #: ... and [K, B^T, -f1, -f1, -f2]'s, for residuals exact in the multipliers and in the
+        #: path's loads too (PathLoads; zero coefficients for other loads)
+        self._KBF_exact = None
+        self._f_local = None  # the local rows of (f1, f2) (_loads_local)
         #: steps of iterative refinement applied to every solve with K (see REFINE_RTOL), and the
         #: relative correction of B x that the first step made on the set-up's probe solve (None:
         #: no probe)
@@ -577,17 +579,23 @@ class CondensedSolver:
                 self._K_exact = linalg.ExactResidual(self.K_local)
             return self._K_exact(b, x)
         lam = np.asarray(lam, dtype=float).reshape((-1,) + x.shape[1:])
-        if coef is None:
-            if self._KB_exact is None:
-                self._KB_exact = linalg.ExactResidual(sp.hstack([self.K_local, self.B_local.T], format="csr"))
-            return self._KB_exact(b, np.concatenate([x, lam]))
-        if self._KBF_exact is None:
-            f1, f2 = self.system.loads_numpy()
-            f1l, f2l = f1[self.r0:self.r1], f2[self.r0:self.r1]
+        if self._KBF_exact is None:  # (one matrix for both: zero coefficients add exact zeros)
+            f1l, f2l = self._loads_local()
             F = sp.csr_matrix(-np.column_stack([f1l, f1l, f2l]))
             self._KBF_exact = linalg.ExactResidual(sp.hstack([self.K_local, self.B_local.T, F], format="csr"))
-        coef = np.asarray(coef, dtype=float).reshape((3,) + x.shape[1:])
-        return self._KBF_exact(np.zeros(x_local.shape), np.concatenate([x, lam, coef]))
+        if coef is None:
+            coef = np.zeros((3,) + x.shape[1:])
+        else:
+            b = np.zeros(x_local.shape)
+            coef = np.asarray(coef, dtype=float).reshape((3,) + x.shape[1:])
+        return self._KBF_exact(b, np.concatenate([x, lam, coef]))
+
+    def _loads_local(self) -> tuple:
+        """The local rows of the system's loads (f1, f2) (kept)."""
+        if self._f_local is None:
+            f1, f2 = self.system.loads_numpy()
+            self._f_local = (np.array(f1[self.r0:self.r1]), np.array(f2[self.r0:self.r1]))
+        return self._f_local
 
     def _ksolve_refined(self, rhs_local: np.ndarray, lam: Optional[np.ndarray] = None) -> np.ndarray:
         """K^-1 rhs (local rows of one vector), refined with self.refine_steps steps; with
@@ -969,9 +977,8 @@ class CondensedSolver:
         value; not a rate).  Collective under MPI."""
         coef = None
         if isinstance(loads, PathLoads):
-            f1, f2 = self.system.loads_numpy()
             coef = loads.coef
-            fl = loads.vectors(f1[self.r0:self.r1], f2[self.r0:self.r1])
+            fl = loads.vectors(*self._loads_local())
         else:
             fl = np.asfortranarray(loads[self.r0:self.r1])
         X = self._refine_columns(self._ksolve_dense(np.asfortranarray(fl - self.B_local.T @ L)), fl, L, coef)
@@ -1412,10 +1419,7 @@ class CondensedSolver:
         k = alphas.size
         if lams.shape[1] != k:
             raise InputError(f"displacements: {lams.shape[1]} multiplier columns but {k} alphas")
-        if getattr(self, "_f_local", None) is None:
-            f1, f2 = self.system.loads_numpy()
-            self._f_local = (np.array(f1[self.r0:self.r1]), np.array(f2[self.r0:self.r1]))
-        f1l, f2l = self._f_local
+        f1l, f2l = self._loads_local()
         block = max(1, int(STORE_LIMIT // max(self.nloc, 1)))
         if self.size > 1:
             from mpi4py import MPI
