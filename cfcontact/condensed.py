@@ -2056,7 +2056,7 @@ class _Updater:
                         if step + 1 == UPDATE_REFINE_STEPS:
                             Eg_scale = size / max(sizes[-2], 1e-300)
                             break
-                    elif D.size and step + 1 < UPDATE_REFINE_STEPS and not _columns_converged(
+                    elif D.size and not stalled and step + 1 < UPDATE_REFINE_STEPS and not _columns_converged(
                             csizes, False, np.abs(L).max(axis=0, initial=0.0)):
                         # an updated solve whose columns have not all converged: refined on while
                         # it contracts, to its rounding floor (a correction not below a quarter of
