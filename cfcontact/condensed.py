@@ -2029,20 +2029,21 @@ class _Updater:
                 csizes.append(np.abs(Dl).max(axis=0, initial=0.0))
                 size = float(csizes[-1].max(initial=0.0))
                 sizes.append(size)
+                ratio = size / max(sizes[-2], 1e-300) if step else 1.0  # this correction to the last
                 converged = step and size <= 1e-3 * sizes[0]
                 unapplied = converged and (csizes[-1] <= UPDATE_UNAPPLIED_RTOL * np.abs(L).max(axis=0)).all()
                 if unapplied:
                     # converged to rounding: this correction, this much smaller than the last
                     # applied one, is the error estimate (as that one's indicators times the
                     # contraction) and is not applied, which spares a product with S
-                    Eg_scale = size / max(sizes[-2], 1e-300)
+                    Eg_scale = ratio
                     self.unapplied += 1
                     break
                 stalled = step and size > 0.25 * sizes[-2]
                 if stalled and more:
                     # refined on to the rounding floor: the last correction applied stands, this
                     # one (not much smaller) is its error estimate
-                    Eg_scale = size / max(sizes[-2], 1e-300)
+                    Eg_scale = ratio
                     settled = True
                     break
                 # applied (after a poor first solve -- 5 % off on a strip at F = 30 -- the second
@@ -2054,7 +2055,7 @@ class _Updater:
                 if converged:
                     if more:  # refining on: to the floor, or this many steps
                         if step + 1 == UPDATE_REFINE_STEPS:
-                            Eg_scale = size / max(sizes[-2], 1e-300)
+                            Eg_scale = ratio
                             break
                     elif D.size and not stalled and step + 1 < UPDATE_REFINE_STEPS and not _columns_converged(
                             csizes, False, np.abs(L).max(axis=0, initial=0.0)):
@@ -2070,7 +2071,7 @@ class _Updater:
                     else:
                         # converged, the correction applied: the next one would be about this much
                         # smaller than it, the error estimate
-                        Eg_scale = size / max(sizes[-2], 1e-300)
+                        Eg_scale = ratio
                         break
                 if stalled:
                     ok = step == 1 and size <= UPDATE_REFINE_RTOL * max(np.abs(L).max(initial=0.0), 1e-300)
