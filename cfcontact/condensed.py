@@ -412,8 +412,6 @@ class CondensedSolver:
         self._s_colmax = None  # max_i |S_ij| (needs_true)
         #: every branch of the exact method is corrected against K (see needs_true)
         self.true_always = False
-        #: a branch has been corrected against K (the first one always is: see needs_true)
-        self.true_measured = False
         #: the smallest residual of a branch's equations (relative to the size of its terms) that
         #: a correction against K failed to halve: the rounding floor of the measure (see against_K)
         self.polish_floor = None
@@ -869,9 +867,9 @@ class CondensedSolver:
 
     # ---------------------------------------------------------------- loads
     def needs_true(self, W: np.ndarray, G: np.ndarray, L: Optional[np.ndarray] = None) -> bool:
-        """Can the rounding of a branch's data reach POLISH_RTOL of its indicators G[:, 0] (the
-        multipliers and rho B u)?  S's error after its correction (or the rounding unit), times
-        rho times the larger of |w| (W's first column) and the bound sum_j max_i |S_ij| |L_j| of
+        """Can the rounding of a branch's data reach POLISH_RTOL of its point (the multipliers and
+        rho B u, from L[:, 0] and the indicators G[:, 0])?  S's error after its correction (or the
+        rounding unit), times rho times the larger of |w| (W's first column) and the bound sum_j max_i |S_ij| |L_j| of
         the terms of S L (multipliers of both signs cancel in S L: at F = 30 the slip forces, 30
         times the normal ones, made S L much smaller than its terms, and the m = 2000 strip's
         branches beyond its 2470th transition fell under the |w| estimate with points 1.6e-9 off).
@@ -880,21 +878,31 @@ class CondensedSolver:
         equations off by more than POLISH_RTOL (``true_always``), every branch is corrected: the
         estimate is a bound of sizes, not of the error's direction (with it alone, 11 of the
         strip's first 2609 branches went uncorrected, 4 of 225 points there above 1e-9; with
-        every branch corrected none, at the same cost).  The first branch asked about is corrected
-        whatever the estimate says: its correction measures what the estimate only bounds, and
-        what it finds decides ``true_always`` before the path has used an uncorrected branch (a
-        strip of L/H = 9, 2 cells across, m = 450, random loads at F = 30: the estimate passed the
-        start branch, which was 8.4e-10 off; the transition it located was off by as much, and
-        the next branch's point there 1.1e-8 from (1)-(3), though corrected)."""
+        every branch corrected none, at the same cost).  The threshold is relative to the point's
+        size as (1)-(3) are measured, not to the indicators (see below: a strip of L/H = 9, 2
+        cells across, m = 450, random loads at F = 30 had its start branch passed 8.4e-10 off, the
+        transition it located off by as much, and the next branch's point there 1.1e-8 from
+        (1)-(3), though corrected)."""
         if not self.refine_steps or self.s_error is None:
             return False
-        if self.true_always or not self.true_measured:
+        if self.true_always:
             return True
         size = np.abs(W[:, 0]).max(initial=0.0)
         if L is not None:
             size = max(size, float(self._colmax() @ np.abs(L[:, 0])))
         err = max(self.s_error, np.finfo(float).eps) * self.system.rho * size
-        return bool(err > POLISH_RTOL * np.abs(G[:, 0]).max(initial=0.0))
+        # the point's size as (1)-(3) are measured: its multipliers and rho B u, i.e. the normal
+        # indicators a and the tangential ones without their -+ F lam_n (at F = 30 the slip
+        # indicators are thirty times the point, and with them a branch 8e-10 off passed as 0.23 of
+        # the threshold)
+        m, g = self.m, G[:, 0]
+        point = np.abs(g[:m]).max(initial=0.0)
+        if L is not None:
+            point = max(point, np.abs(L[:, 0]).max(initial=0.0),
+                        np.abs(g[m:2 * m] + self.F * L[:m, 0]).max(initial=0.0))
+        else:
+            point = max(point, np.abs(g[m:]).max(initial=0.0))
+        return bool(err > POLISH_RTOL * point)
 
     def _colmax(self) -> np.ndarray:
         """max_i |S_ij| per column j (once): sum_j of it times |L_j| bounds the terms of S L."""
@@ -921,7 +929,6 @@ class CondensedSolver:
         thrown away, cost a fifth of the branch.)"""
         if self.refine_floor is not None and self.refine_floor > POLISH_SOLVE_RTOL:
             self.polish_steps = 1  # (the corrections read B u: its solves need that digit too)
-        self.true_measured = True
         loads, gap = true
         if callable(loads):
             loads = loads()
