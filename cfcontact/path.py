@@ -15,11 +15,11 @@ logic are re-exported here for code written against the single ``path`` module.
 
 from __future__ import annotations
 
-import os
 from typing import Callable, Optional
 
+from cfcontact.backend import CONDENSED_MAX_M, auto_backend, machine_memory, select_solver
 from cfcontact.errors import InputError
-from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions, check_backend, check_method
+from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions, check_method
 from cfcontact.solution_path import (
     BATCH_LIMIT,
     FORMAT_VERSION,
@@ -30,61 +30,14 @@ from cfcontact.solution_path import (
     SolutionPath,
     Transition,
 )
-from cfcontact.ssnm import get_solver
 from cfcontact.start import START_RHO_FACTORS, branch_endpoints, check_request, resume_parts, start_point
 from cfcontact.stepper import check_monitor
 from cfcontact.system import ContactSystem
 
-__all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
+__all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "machine_memory", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
            "PathOptions", "AlphaSpan", "SolutionPath", "Branch", "Transition", "PathEvent", "PathPoint",
            "SET_NAMES", "FORMAT_VERSION", "BATCH_LIMIT", "START_RHO_FACTORS", "start_point", "branch_endpoints",
            "resume_parts"]
-
-#: ``backend="auto"`` uses the condensed solver for the exact method up to this many contact
-#: nodes on any machine (its dense matrices are (2m)^2: 128 MB at m = 2000), ...
-CONDENSED_MAX_M = 2000
-#: ... and beyond that while CONDENSED_BYTES_PER_ENTRY bytes per entry of (2m)^2 -- S, the kept
-#: factorization of the branches' systems with its updates, the dense LU cache -- fit in
-#: CONDENSED_MEMORY_SHARE of the machine's memory (benchmark Part C: the m = 4000 strips peak at
-#: 2.7-4.1 GiB in all, 43-69 bytes per entry; on 24 GiB this admits m <= 7100).  The full
-#: backend refactors J(Z) per branch: 3x the time per transition at m = 4000.
-CONDENSED_BYTES_PER_ENTRY = 64
-CONDENSED_MEMORY_SHARE = 0.5
-
-
-def machine_memory() -> Optional[int]:
-    """Bytes of physical memory (None where the system does not say)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def auto_backend(method: str, m: int, memory: Optional[int] = None) -> str:
-    """The backend ``backend="auto"`` picks for ``method`` on a system of m contact nodes, on a
-    machine with ``memory`` bytes (default: :func:`machine_memory`): "condensed" for the exact
-    method while its dense data fit (CONDENSED_MAX_M, CONDENSED_BYTES_PER_ENTRY), else "full"."""
-    check_method(method)
-    if method != "exact":
-        return "full"
-    if m <= CONDENSED_MAX_M:
-        return "condensed"
-    memory = machine_memory() if memory is None else memory
-    fits = memory is not None and CONDENSED_BYTES_PER_ENTRY * (2.0 * m) ** 2 <= CONDENSED_MEMORY_SHARE * memory
-    return "condensed" if fits else "full"
-
-
-def select_solver(system: ContactSystem, method: str = "exact", backend: str = "auto"):
-    """The system's cached DirNeu backend for ``method`` (see :func:`trace_path`'s ``backend``)."""
-    check_backend(backend)
-    if backend == "auto":
-        backend = auto_backend(method, system.m)
-    if backend == "condensed":
-        from cfcontact.condensed import get_condensed_solver
-
-        return get_condensed_solver(system)
-    return get_solver(system)
-
 
 def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, method: str = "seed", y0=None,
                  solver=None, resume=None, monitor=None):

@@ -789,8 +789,14 @@ def test_trace_tree_finds_every_solution_of_two_identical_nodes():
     for b in path.branches[1:]:
         assert b.parent is not None and b.origin is not None
     assert_transitions_verify(system, path, 1e-12)
+    # trace_tree without a solver: trace_path's backend (the condensed one here), not the PETSc one
+    from cfcontact.condensed import get_condensed_solver
+
+    condensed_solver = get_condensed_solver(system)
+    solves = condensed_solver.stats.dense_solves
     tree = cfcontact.exact.trace_tree(system, 0.0, 1.0)
     assert len(tree.branches) == len(path.branches)
+    assert condensed_solver.stats.dense_solves > solves
 
 
 @pytest.mark.slow
