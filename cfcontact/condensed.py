@@ -869,10 +869,11 @@ class CondensedSolver:
     def needs_true(self, W: np.ndarray, G: np.ndarray, L: Optional[np.ndarray] = None) -> bool:
         """Can the rounding of a branch's data reach POLISH_RTOL of its point (the multipliers and
         rho B u, from L[:, 0] and the indicators G[:, 0])?  S's error after its correction (or the
-        rounding unit), times rho times the larger of |w| (W's first column) and the bound sum_j max_i |S_ij| |L_j| of
-        the terms of S L (multipliers of both signs cancel in S L: at F = 30 the slip forces, 30
-        times the normal ones, made S L much smaller than its terms, and the m = 2000 strip's
-        branches beyond its 2470th transition fell under the |w| estimate with points 1.6e-9 off).
+        rounding unit), times rho times the larger of |w| (W's first column) and the bound
+        sum_j max_i |S_ij| |L_j| of the terms of S L (multipliers of both signs cancel in S L: at
+        F = 30 the slip forces, 30 times the normal ones, made S L much smaller than its terms,
+        and the m = 2000 strip's branches beyond its 2470th transition fell under the |w|
+        estimate with points 1.6e-9 off).
         Only with refined solves (``refine_steps``): unrefined, u shares S's rounding and is
         formed as consistently as S (see REFINE_RTOL).  Once a correction has found a branch's
         equations off by more than POLISH_RTOL (``true_always``), every branch is corrected: the

@@ -1986,9 +1986,10 @@ def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     included.  Sub-runs end where they reach a branch already traced ("joined") or come back to
     their own first branch ("closed_loop").  Multiplicity counts (``solutions_at``,
     ``max_multiplicity``) then include every branch of the tree.  Without a ``solver`` the
-    backend is the one ``trace_path(..., method="exact")`` picks (:func:`cfcontact.backend.select_solver`:
-    the condensed solver while its dense data fit; on a punch with m = 69 the PETSc backend's
-    start alone took 108 s, the condensed one's whole tree 0.6 s)."""
+    backend is the one ``trace_path(..., method="exact")`` picks
+    (:func:`cfcontact.backend.select_solver`: the condensed solver while its dense data fit; on a
+    punch with m = 69 the PETSc backend's start alone took 108 s, the condensed one's tree 0.14 s
+    after the path's set-up)."""
     if kwargs.get("solver") is None:
         kwargs["solver"] = select_solver(system, "exact")
     return trace_exact(system, alpha_start, alpha_end, tree=True, **kwargs)
@@ -2007,7 +2008,8 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     ``event.data["followed"][str(alternative)]``.  A sub-run stopped by ``callback`` ends there
     (status "stopped by callback"): ``path.resume_state`` keeps the main run's state, so that
     resuming the path continues the main run, not the alternative.  Without a ``solver`` the
-    backend is the one ``trace_path(..., method="exact")`` picks (:func:`cfcontact.backend.select_solver`).
+    backend is the one ``trace_path(..., method="exact")`` picks
+    (:func:`cfcontact.backend.select_solver`).
     """
     if not (0 <= event_index < len(path.events)) or path.events[event_index].kind != "branch_point":
         raise InputError(f"event {event_index} is not a branch_point event of this path")

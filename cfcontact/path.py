@@ -34,10 +34,10 @@ from cfcontact.start import START_RHO_FACTORS, branch_endpoints, check_request, 
 from cfcontact.stepper import check_monitor
 from cfcontact.system import ContactSystem
 
-__all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "machine_memory", "CONDENSED_MAX_M", "BACKENDS", "METHODS",
-           "PathOptions", "AlphaSpan", "SolutionPath", "Branch", "Transition", "PathEvent", "PathPoint",
-           "SET_NAMES", "FORMAT_VERSION", "BATCH_LIMIT", "START_RHO_FACTORS", "start_point", "branch_endpoints",
-           "resume_parts"]
+__all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "machine_memory", "CONDENSED_MAX_M",
+           "BACKENDS", "METHODS", "PathOptions", "AlphaSpan", "SolutionPath", "Branch", "Transition", "PathEvent",
+           "PathPoint", "SET_NAMES", "FORMAT_VERSION", "BATCH_LIMIT", "START_RHO_FACTORS", "start_point",
+           "branch_endpoints", "resume_parts"]
 
 def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, method: str = "seed", y0=None,
                  solver=None, resume=None, monitor=None):
