@@ -20,7 +20,7 @@ from cfcontact.errors import InputError
 
 #: Path-following methods (:func:`cfcontact.path.trace_path`).
 METHODS = ("seed", "exact")
-#: DirNeu backends (:func:`cfcontact.path.select_solver`).
+#: DirNeu backends (:func:`cfcontact.backend.select_solver`).
 BACKENDS = ("auto", "full", "condensed")
 #: The largest |alpha| of a path's range (alpha_start, alpha_end, alpha_min, alpha_max): the load
 #: f(alpha) = (1 - alpha) f1 + alpha f2 grows like |alpha|, so a longer range only repeats the

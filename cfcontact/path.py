@@ -39,6 +39,7 @@ __all__ = ["trace_path", "path_stepper", "select_solver", "auto_backend", "machi
            "PathPoint", "SET_NAMES", "FORMAT_VERSION", "BATCH_LIMIT", "START_RHO_FACTORS", "start_point",
            "branch_endpoints", "resume_parts"]
 
+
 def path_stepper(system: ContactSystem, span: AlphaSpan, options: PathOptions, method: str = "seed", y0=None,
                  solver=None, resume=None, monitor=None):
     """The stepper of ``method`` for a validated request (see :func:`trace_path`).  K is checked
