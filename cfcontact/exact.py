@@ -62,7 +62,7 @@ from cfcontact.errors import ConvergenceError, InputError, SingularSystemError, 
 from cfcontact.jsonio import jsonable
 from cfcontact.options import ALPHA_LIMIT, TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
-from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, get_solver, indicators
+from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, indicators
 from cfcontact.start import START_RHO_FACTORS, check_request, resume_parts, start_point
 from cfcontact.stepper import StartProgress, Stepper, check_monitor, stop_only
 from cfcontact.system import ContactSystem
@@ -1447,7 +1447,7 @@ class ExactStepper(Stepper):
                  start_sets: Optional[InactiveSets] = None, orientation: Optional[int] = None, monitor=None):
         check_monitor(monitor)
         self.system, self.span, self.opts = system, span, options
-        self.solver = solver or get_solver(system)
+        self.solver = solver if solver is not None else select_solver(system, "exact")
         self.start = None
         if resume is None:
             self._start_clock()
@@ -1932,8 +1932,10 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     y0 : start solution or guess for SSNM at alpha_start (ignored with ``start_sets``)
     options : PathOptions (alpha_min/alpha_max, max_transitions, tie_rtol, tol/max_iter of the
         start SSNM are used; the step-size options are not)
-    solver : DirNeu backend (default: the system's PETSc :class:`~cfcontact.ssnm.DirNeuSolver`;
-        :class:`~cfcontact.condensed.CondensedSolver` for one factorization of K in total)
+    solver : DirNeu backend (default: the one :func:`cfcontact.path.trace_path` picks,
+        :func:`cfcontact.backend.select_solver`: the
+        :class:`~cfcontact.condensed.CondensedSolver`, one factorization of K in total, while its
+        dense data fit the machine, else the PETSc :class:`~cfcontact.ssnm.DirNeuSolver`)
     tie_rtol : relative tolerance (on the local size of the indicators, beyond their measured
         rounding error) under which an indicator value or rate counts as zero (overrides
         ``options.tie_rtol``); ties are settled by the lexicographic rule
@@ -1986,12 +1988,10 @@ def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     included.  Sub-runs end where they reach a branch already traced ("joined") or come back to
     their own first branch ("closed_loop").  Multiplicity counts (``solutions_at``,
     ``max_multiplicity``) then include every branch of the tree.  Without a ``solver`` the
-    backend is the one ``trace_path(..., method="exact")`` picks
+    backend is the one ``trace_path(..., method="exact")`` picks, as for :func:`trace_exact`
     (:func:`cfcontact.backend.select_solver`: the condensed solver while its dense data fit; on a
     punch with m = 69 the PETSc backend's start alone took 108 s, the condensed one's tree 0.14 s
     after the path's set-up)."""
-    if kwargs.get("solver") is None:
-        kwargs["solver"] = select_solver(system, "exact")
     return trace_exact(system, alpha_start, alpha_end, tree=True, **kwargs)
 
 
@@ -2127,7 +2127,7 @@ def _tree_context(system, path, options, solver) -> _Context:
     """The run context of sub-runs that grow ``path`` into a tree: every branch of the path counts
     as traversed, so a sub-run that reaches one ends "joined"."""
     span = AlphaSpan.of(path.alpha_start, path.alpha_end, options)
-    ctx = _Context(system, solver or get_solver(system), options, span.lo, span.hi, float(options.tie_rtol))
+    ctx = _Context(system, solver, options, span.lo, span.hi, float(options.tie_rtol))
     for b in path.branches:
         ctx.visited.setdefault(_digest(_canon(system, b.sets).tobytes()),
                                (b.orientation, b.alpha_enter))

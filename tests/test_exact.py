@@ -797,6 +797,12 @@ def test_trace_tree_finds_every_solution_of_two_identical_nodes():
     tree = cfcontact.exact.trace_tree(system, 0.0, 1.0)
     assert len(tree.branches) == len(path.branches)
     assert condensed_solver.stats.dense_solves > solves
+    # ... and so does the plain trace_exact
+    solves = condensed_solver.stats.dense_solves
+    plain = cfcontact.trace_exact(system, 0.0, 1.0)
+    assert condensed_solver.stats.dense_solves > solves
+    main = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert [(t.node, t.set, t.alpha) for t in plain.transitions] == [(t.node, t.set, t.alpha) for t in main.transitions]
 
 
 @pytest.mark.slow
