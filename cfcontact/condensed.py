@@ -1731,11 +1731,12 @@ class PointTableau:
 
         [[X_R, U_R], [S_R X, S_R U]],   X = M^-1 r(W),  U = M^-1 P_R   (4k x (p + 2k)),
 
-    and the nodes' indicators as three more rows per node (linear in those rows, less their
-    constant part rho w), which a change of one node's state updates by itself, exactly as
-    :class:`PointModel` updates its full columns (X' = X - U_q C^-1 (Delta X - dr), U' = U - U_q
-    C^-1 Delta U; rank one when only one of the node's rows changes): O(k (p + 2k)) per pivot,
-    independent of m.  There is no residual check (it would cost O(m^2)): the walk forms its
+    which a change of one node's state updates by itself, exactly as :class:`PointModel` updates
+    its full columns (X' = X - U_q C^-1 (Delta X - dr), U' = U - U_q C^-1 Delta U; rank one when
+    only one of the node's rows changes): O(k (p + 2k)) per pivot, independent of m.  The nodes'
+    indicators are linear in those rows (plus their constant part rho w) and are formed from
+    them when asked, in O(k p): kept as three more rows per node they made every update 7/4 as
+    long (the punch of docs/bench.md whose flat face closes at once, k = 105).  There is no residual check (it would cost O(m^2)): the walk forms its
     last branch afresh and compares (:func:`cfcontact.exact._tableau_walk`)."""
 
     def __init__(self, solver, codes, W, nodes):
@@ -1749,15 +1750,8 @@ class PointTableau:
         self.p = p = W.shape[1]
         codes = np.asarray(codes, dtype=np.int8)
         XU = _point_columns(s, codes, _node_types(s, codes), W, R)
-        X, SX = XU[R], s.S[R] @ XU
-        self.F = F = s.F[nodes]
-        # the indicators' rows without their constant part (lam + rho (w - S lam) less rho w): the
-        # updates keep every linear function of the tableau's rows, so these are updated with it
-        H = np.empty((3 * k, XU.shape[1]))
-        Gn, Gt = X[0::2] - rho * SX[0::2], X[1::2] - rho * SX[1::2]
-        FX = F[:, None] * X[0::2]
-        H[0::3], H[1::3], H[2::3] = Gn, Gt - FX, Gt + FX
-        self.A = np.asfortranarray(np.vstack([X, SX, H]))
+        self.F = s.F[nodes]
+        self.A = np.asfortranarray(np.vstack([XU[R], s.S[R] @ XU]))
         self.WR = W[R]
         self.rhoW = rho * self.WR
         self.offset = np.repeat(self.rhoW.reshape(k, 2, p), (1, 2), axis=1).reshape(3 * k, p)
@@ -1767,8 +1761,16 @@ class PointTableau:
 
     def indicators(self) -> np.ndarray:
         """(3k x p): the indicators a, bp, bm of each node in turn (row 3 j + i: indicator i of
-        node j) for the columns of W."""
-        return self.A[4 * self.k:, :self.p] + self.offset
+        node j) for the columns of W: lam + rho (w - S lam) from the tableau's rows (their part
+        without rho w: the updates keep every linear function of those rows)."""
+        k, p, rho, A = self.k, self.p, self.rho, self.A
+        X, SX = A[:2 * k, :p], A[2 * k:, :p]
+        Gn, Gt = X[0::2] - rho * SX[0::2], X[1::2] - rho * SX[1::2]
+        FX = self.F[:, None] * X[0::2]
+        H = np.empty((3 * k, p))
+        H[0::3], H[1::3], H[2::3] = Gn, Gt - FX, Gt + FX
+        H += self.offset
+        return H
 
     def change(self, j, old, new) -> bool:
         """Node j (local index) from state ``old`` to ``new``; False (tableau unchanged) when the
