@@ -1100,15 +1100,25 @@ def _vanishing(ctx, ln, idx):
     return [{"node": int(ln.cnode[j]), "set": SET_NAMES[int(ln.cidx[j]) // m]} for j in idx]
 
 
+#: Membership of each state (STATE_NAMES' order) in the sets (nu, tp, tm) (InactiveSets.from_states).
+_MEMBERSHIP = ((True, True, False), (False, False, False), (False, True, False), (False, False, True))
+
+
 def _changes(ln, nxt, vanishing):
-    """The nodes whose state changes (with the set of their vanishing constraint, when one did)."""
+    """The nodes whose state changes, in the order of their vanishing constraints, each named by
+    the first of the sets (nu, tp, tm) that its change toggles, as the seed method names a change.
+    Where one constraint of the node vanishes that is its set; where several vanish at once (a
+    degenerate point; at an apex every one does) the name does not depend on which the rule
+    crossed first (``Transition.pivots`` lists those): a node that opens is named by "nu"."""
     changes, seen = [], set()
     for ch in vanishing:
         i = ch["node"]
         if i in seen or ln.codes[i] == nxt.codes[i]:
             continue
         seen.add(i)
-        changes.append({**ch, "from": STATE_NAMES[int(ln.codes[i])], "to": STATE_NAMES[int(nxt.codes[i])]})
+        a, b = int(ln.codes[i]), int(nxt.codes[i])
+        name = next(k for k, x, y in zip(SET_NAMES, _MEMBERSHIP[a], _MEMBERSHIP[b]) if x != y)
+        changes.append({**ch, "set": name, "from": STATE_NAMES[a], "to": STATE_NAMES[b]})
     for i in (nxt.codes != ln.codes).nonzero()[0].tolist():
         if i not in seen:
             changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],

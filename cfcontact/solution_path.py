@@ -114,7 +114,9 @@ class Transition:
 
     kind: "transversal" (alpha keeps its direction) or "fold" (alpha turns back).
     node, set: the contact node and the set ("nu": A_nu <-> I_nu, "tp": A_t <-> I_t^+,
-        "tm": A_t <-> I_t^-) that changed; ``changes`` lists all of them when several did.
+        "tm": A_t <-> I_t^-) that changed (where a change moves the node in or out of two
+        sets, both methods name the first of nu, tp, tm: a node that opens is "nu");
+        ``changes`` lists all of them when several nodes changed.
     alpha: the transition parameter (seed: last point before it, within the bracket;
         exact: the root of the indicator).  bracket: (lo, hi) known to contain it.
     pivots: at a degenerate point of the exact method, the single facet crossings (node, set,

@@ -215,7 +215,8 @@ def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_metho
     double set change there, applied its fold rule unverified and cycled at F = 3 and 30; the exact
     method crossed 1/2 as one degenerate point but 1/3 (not a double: the load there is rounding)
     as 2 to 8 transitions ordered by that rounding.  Now both take the same branch in one
-    transition.  The points at the apex itself are zero solutions of a load that is rounding, so
+    transition, and name each node's change alike (the exact method had named some by the slip
+    constraint its rule crossed first, the seed method by the normal set).  The points at the apex itself are zero solutions of a load that is rounding, so
     the relative residual is checked away from it."""
     f = (-3e7, -1e8)
     apex = 1.0 / (1.0 + reversal)
@@ -228,6 +229,9 @@ def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_metho
     assert te.alpha == pytest.approx(apex, abs=1e-15) and ts.bracket[0] <= apex <= ts.bracket[1]
     assert te.kind == ts.kind == "transversal" and len(ts.changes) == len(te.changes) == 10
     assert _branch_codes(seed) == _branch_codes(exact)
+    # each change named alike (the first set it toggles), though every constraint vanishes there
+    assert sorted((c["node"], c["set"]) for c in te.changes) == sorted((c["node"], c["set"]) for c in ts.changes)
+    assert (te.node, te.set) in [(c["node"], c["set"]) for c in ts.changes]
     for path in (exact, seed):
         away = [(a, y) for a, y in path.iter_points() if abs(a - apex) > 1e-9]
         assert max(cfcontact.verify(system, y, a).worst() for a, y in away) < 1e-12
