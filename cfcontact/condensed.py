@@ -1736,8 +1736,9 @@ class PointTableau:
     only one of the node's rows changes): O(k (p + 2k)) per pivot, independent of m.  The nodes'
     indicators are linear in those rows (plus their constant part rho w) and are formed from
     them when asked, in O(k p): kept as three more rows per node they made every update 7/4 as
-    long (the punch of docs/bench.md whose flat face closes at once, k = 105).  There is no residual check (it would cost O(m^2)): the walk forms its
-    last branch afresh and compares (:func:`cfcontact.exact._tableau_walk`)."""
+    long (the punch of docs/bench.md whose flat face closes at once, k = 105).  There is no
+    residual check (it would cost O(m^2)): the walk forms its last branch afresh and compares
+    (:func:`cfcontact.exact._tableau_walk`)."""
 
     def __init__(self, solver, codes, W, nodes):
         s = solver

@@ -216,8 +216,9 @@ def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_metho
     method crossed 1/2 as one degenerate point but 1/3 (not a double: the load there is rounding)
     as 2 to 8 transitions ordered by that rounding.  Now both take the same branch in one
     transition, and name each node's change alike (the exact method had named some by the slip
-    constraint its rule crossed first, the seed method by the normal set).  The points at the apex itself are zero solutions of a load that is rounding, so
-    the relative residual is checked away from it."""
+    constraint its rule crossed first, the seed method by the normal set).  The points at the
+    apex itself are zero solutions of a load that is rounding, so the relative residual is
+    checked away from it."""
     f = (-3e7, -1e8)
     apex = 1.0 / (1.0 + reversal)
     system = cfcontact.two_blocks(nx=10, ny=3, friction=friction, tractions1={"top1": f},
