@@ -1,7 +1,8 @@
 """Which DirNeu backend a run uses: :func:`select_solver` (``backend="auto"``: the condensed
 solver for the exact method while its dense data fit the machine, the PETSc one otherwise),
 shared by :func:`cfcontact.path.trace_path` and the exact method's own entry points
-(:func:`cfcontact.exact.trace_tree`, :func:`cfcontact.exact.follow_alternative`)."""
+(:func:`cfcontact.exact.trace_exact` and the stepper it runs, :func:`cfcontact.exact.trace_tree`,
+:func:`cfcontact.exact.follow_alternative`)."""
 
 from __future__ import annotations
 

@@ -1104,6 +1104,12 @@ def _vanishing(ctx, ln, idx):
 _MEMBERSHIP = ((True, True, False), (False, False, False), (False, True, False), (False, False, True))
 
 
+def _set_name(a: int, b: int) -> str:
+    """The name of a node's change from state code a to b: the first of the sets (nu, tp, tm)
+    that it toggles, as the seed method names a change (a node that opens or closes: "nu")."""
+    return next(k for k, x, y in zip(SET_NAMES, _MEMBERSHIP[a], _MEMBERSHIP[b]) if x != y)
+
+
 def _changes(ln, nxt, vanishing):
     """The nodes whose state changes, in the order of their vanishing constraints, each named by
     the first of the sets (nu, tp, tm) that its change toggles, as the seed method names a change.
@@ -1117,8 +1123,7 @@ def _changes(ln, nxt, vanishing):
             continue
         seen.add(i)
         a, b = int(ln.codes[i]), int(nxt.codes[i])
-        name = next(k for k, x, y in zip(SET_NAMES, _MEMBERSHIP[a], _MEMBERSHIP[b]) if x != y)
-        changes.append({**ch, "set": name, "from": STATE_NAMES[a], "to": STATE_NAMES[b]})
+        changes.append({**ch, "set": _set_name(a, b), "from": STATE_NAMES[a], "to": STATE_NAMES[b]})
     for i in (nxt.codes != ln.codes).nonzero()[0].tolist():
         if i not in seen:
             changes.append({"node": int(i), "set": None, "from": STATE_NAMES[int(ln.codes[i])],
@@ -1766,11 +1771,9 @@ def _apex_crossing(ctx: _Context, path, ln: _Line, s, a_star, a_err) -> Optional
 
 def _named(changes) -> list:
     """``changes`` (:func:`_changes`) with a set for each: where no vanishing constraint named it,
-    the first of (nu, tp, tm) that the state change toggles."""
-    def name(ch):
-        a, b = ch["from"], ch["to"]
-        return "nu" if (a == "open") != (b == "open") else "tp" if "slip+" in (a, b) else "tm"
-    return [ch if ch.get("set") is not None else {**ch, "set": name(ch)} for ch in changes]
+    :func:`_set_name` of its states."""
+    return [ch if ch.get("set") is not None else
+            {**ch, "set": _set_name(STATE_NAMES.index(ch["from"]), STATE_NAMES.index(ch["to"]))} for ch in changes]
 
 
 def _apex_start(ctx: _Context, path, alpha, s, monitor=None, event=True) -> Optional[_Line]:
