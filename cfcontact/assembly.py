@@ -697,7 +697,7 @@ def assemble_contact_system(
     t_assemble = time.perf_counter() - t0
 
     # --------------------------------------------------------------- contact
-    pr = _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol)
+    pr = _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol, fixed)
     # drop pairs whose normal row would be zero (every DOF it touches is prescribed)
     pair_of, node_of, fac_of = pr.entries()
     live = np.zeros(pr.m, dtype=bool)
@@ -788,16 +788,19 @@ def assemble_contact_system(
                          geometry=geometry, info=meta, gap=pr.gap)
 
 
-def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol):
-    """The contact pairs (:class:`cfcontact.pairing.Pairing`) of the model, in slave node order."""
+def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, match_tol, fixed=None):
+    """The contact pairs (:class:`cfcontact.pairing.Pairing`) of the model, in slave node order;
+    ``fixed``: the prescribed displacement components (P, 2) (rollers turn the slave normals,
+    :func:`cfcontact.pairing.roller_normals`)."""
     pts = fem.points
     f1, cent1 = _contact_facets(fem, CONTACT1, BODY1)
     _, length1 = pairing_mod.facet_normals(pts, f1, cent1)
     h = float(length1.min())
     tol = float(match_tol) * h
     if obstacle is not None:
-        return pairing_mod.obstacle_pairing(pts, f1, cent1, obstacle, search_distance=search_distance, snap=tol)
-    nodes1, normal1 = pairing_mod.node_normals(pts, f1, cent1, "contact1")
+        return pairing_mod.obstacle_pairing(pts, f1, cent1, obstacle, search_distance=search_distance, snap=tol,
+                                            fixed=fixed)
+    nodes1, normal1 = pairing_mod.node_normals(pts, f1, cent1, "contact1", fixed)
     trib1 = pairing_mod.tributary_lengths(pts, f1, nodes1)
     k = len(nodes1)
     if rigid:
@@ -813,9 +816,9 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
         return pairing_mod.Pairing(nodes1, master, weights, normal1, np.zeros(k), trib1, 1)
     if slave_tag == CONTACT1:
         return pairing_mod.node_to_segment(pts, f1, cent1, f2, cent2, slave_body=1, search_distance=search_distance,
-                                           snap=tol, slave_name="contact1", master_name="contact2")
+                                           snap=tol, slave_name="contact1", master_name="contact2", fixed=fixed)
     return pairing_mod.node_to_segment(pts, f2, cent2, f1, cent1, slave_body=2, search_distance=search_distance,
-                                       snap=tol, slave_name="contact2", master_name="contact1")
+                                       snap=tol, slave_name="contact2", master_name="contact1", fixed=fixed)
 
 
 def _contact_facets(fem, tag, body):

@@ -667,9 +667,14 @@ def _validate_contact(table, geometry, groups):
                             f'of contact1 and contact2); add pairing = "segment" or leave {key} out')
     if "slave" in contact:
         slave = contact["slave"]
-        _check_tag(slave, groups, 1, "[contact] slave")
-        number = _tag_number(slave, groups, 1)
         valid = "contact1=10" + (" or contact2=20" if body2 and "obstacle" not in contact else "")
+        try:
+            _check_tag(slave, groups, 1, "[contact] slave")
+        except CaseError:
+            raise CaseError(f"[contact] slave: must be a contact boundary ({valid}), got {slave!r}, which is not a "
+                            "boundary piece of the model" + (" (an obstacle is the master of contact1)"
+                                                             if "obstacle" in contact else "")) from None
+        number = _tag_number(slave, groups, 1)
         if number not in (10, 20) or (number == 20 and "obstacle" in contact):
             raise CaseError(f"[contact] slave: must be a contact boundary ({valid}), got {slave!r}"
                             + (f" ({groups[(1, number)]}={number})" if groups.get((1, number)) else ""))
@@ -993,6 +998,8 @@ def _case_message(message, contact) -> str:
     first = message.split("\n")[0].rstrip(": ")
     if "non-matching contact interface" in message:
         return "[contact] pairing: " + first.replace(" (pairing='segment')", ' (pairing = "segment" in [contact])')
+    if message.startswith("friction must be"):
+        return f"[contact] friction: {first}"
     if "obstacle" in contact and "obstacle" in message:
         return f"[contact.obstacle]: {first}"
     if message.startswith(("non-zero prescribed displacement", "dirichlet")) or "prescribed x displacements" in \

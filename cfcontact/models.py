@@ -94,7 +94,8 @@ def two_blocks(
     (``top1``: (2e7, -1e8)) and :data:`DEFAULT_TRACTIONS2` (``top1``: (1e8, -2e7));
     pass ``{}`` for no traction.  Load vectors are given in the frame of the
     unrotated blocks and turn with the assembly when ``angle`` (degrees,
-    counter-clockwise about the origin) is not zero.
+    counter-clockwise about the origin) is not zero; prescribed displacements (``dirichlet``)
+    are in the global frame and do not turn.
 
     ``foundation=True`` builds body 1 alone on a rigid foundation (clamp default
     ``("left1",)``), or against a rigid ``obstacle`` (a line or a circle, see

@@ -18,7 +18,11 @@ Conventions (DESIGN.md): n is the outer normal of body 1, t = (-n_y, n_x), and
   rays down a bounding-volume hierarchy of the master facets built on SciPy's k-d tree
   (``cKDTree``): no double loop.  A slave node within ``snap`` of a master
   node pairs with it node to node (weights exactly (1, 0), g = 0), so a matching interface gives
-  exactly the rows of :func:`match_nodes`.
+  exactly the rows of :func:`match_nodes`; a gap within ``snap`` of 0 is 0 (a slave node on a
+  master facet, placed there to rounding: on a rotated interface the ray's distance is +-1e-16).
+* A slave node with one prescribed displacement component (a roller, or a node on a symmetry
+  plane through the contact boundary: ``fixed``) takes its normal along its free component
+  (:func:`roller_normals`).
 * :class:`Line`, :class:`Circle`: rigid obstacles given analytically, master of a single body
   (:func:`obstacle_pairing`); their rows involve the slave body's DOFs only.
 
@@ -142,9 +146,11 @@ def facet_normals(points, facets, centroids):
     return fn, length
 
 
-def node_normals(points, facets, centroids, what="contact1"):
+def node_normals(points, facets, centroids, what="contact1", fixed=None):
     """(nodes, unit outer normals) of the nodes of a boundary: the normalised sum of the outer
-    normals of each node's facets (summed in a fixed order: rank independent)."""
+    normals of each node's facets (summed in a fixed order: rank independent); with ``fixed``
+    ((P, 2) bool, the prescribed displacement components of every node) turned at rollers by
+    :func:`roller_normals`."""
     facets = np.asarray(facets, dtype=np.int64).reshape(-1, 2)
     fn, _ = facet_normals(points, facets, centroids)
     nodes = np.unique(facets)
@@ -159,7 +165,33 @@ def node_normals(points, facets, centroids, what="contact1"):
         bad = nodes[norm < 1e-12]
         raise GeometryError(f"{what} normal undefined at node(s) {np.asarray(points)[bad].tolist()} "
                             "(facets with opposite normals)")
-    return nodes, acc / norm[:, None]
+    normals = acc / norm[:, None]
+    return nodes, (normals if fixed is None else roller_normals(normals, np.asarray(fixed, dtype=bool)[nodes]))
+
+
+def roller_normals(normals, fixed):
+    """The normals (k, 2) of k boundary nodes, those with one prescribed displacement component
+    (``fixed``: (k, 2) bool) turned along the free one, where they are nearer to it than to the
+    prescribed one.
+
+    Such a node lies on a roller or on a symmetry plane, which the contact boundary meets there:
+    it moves along the plane only.  Its averaged normal comes from the one facet on its side and
+    is tilted by half that facet's turn (a cylinder's node on its axis of symmetry, the end
+    node of a quarter model): its normal and tangential rows would then both read the one free
+    component, and where the master side is held the same way (the other body's node on the
+    plane, a rigid obstacle) they are dependent -- J(Z) singular for a closed sticking node.  By
+    symmetry the normal lies in the plane; along it the node's tangential row reads only
+    prescribed components, so the pair has no tangential unknown
+    (:attr:`cfcontact.system.ContactSystem.no_tangent`).  The gap is then measured along the
+    direction the node can move."""
+    normals = np.array(normals, dtype=float).reshape(-1, 2)
+    fixed = np.asarray(fixed, dtype=bool).reshape(-1, 2)
+    for comp in (0, 1):  # comp prescribed, the other free
+        free = 1 - comp
+        turn = fixed[:, comp] & ~fixed[:, free] & (np.abs(normals[:, free]) >= np.abs(normals[:, comp]))
+        normals[turn, comp] = 0.0
+        normals[turn, free] = np.sign(normals[turn, free])
+    return normals
 
 
 def tributary_lengths(points, facets, nodes):
@@ -461,7 +493,7 @@ class _SegmentTree:
 
 
 def node_to_segment(points, slave_facets, slave_centroids, master_facets, master_centroids, *, slave_body=1,
-                    search_distance=None, snap=0.0, slave_name="slave", master_name="master") -> Pairing:
+                    search_distance=None, snap=0.0, slave_name="slave", master_name="master", fixed=None) -> Pairing:
     """Node-to-segment pairing of the slave boundary's nodes onto the master boundary (see the
     module docstring).  Facets are (F, 2) node pairs, centroids the centroids of their cells (for
     the outer normals).  ``slave_body``: 1 or 2 (the normal n is the slave's outer normal for 1,
@@ -469,10 +501,11 @@ def node_to_segment(points, slave_facets, slave_centroids, master_facets, master
 
     Search: the rays are walked down a bounding-volume hierarchy of the master facets built on
     SciPy's k-d tree (:class:`_SegmentTree`); only the facets of the leaves whose boxes a ray's
-    line crosses are intersected (about log(#facets) boxes per ray)."""
+    line crosses are intersected (about log(#facets) boxes per ray).  ``fixed``: see
+    :func:`node_normals`."""
     pts = np.asarray(points, dtype=float)
     search = check_search_distance(search_distance)
-    snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name)
+    snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name, fixed)
     mf = np.asarray(master_facets, dtype=np.int64).reshape(-1, 2)
     if not len(mf):
         raise GeometryError(f"{master_name} has no facets")
@@ -504,13 +537,14 @@ def node_to_segment(points, slave_facets, slave_centroids, master_facets, master
     master = mf[best_seg]
     weights = np.column_stack([1.0 - xi, xi])
     gap = best_t.copy()
-    # a slave node on a master node (a matching interface): node to node, g = 0 exactly
+    # a slave node on a master node (a matching interface): node to node, g = 0 exactly; on a
+    # master facet (to rounding): g = 0
     if snap > 0:
         near_a = np.hypot(*(xs - A[best_seg]).T) <= snap
         near_b = ~near_a & (np.hypot(*(xs - B[best_seg]).T) <= snap)
         weights[near_a] = (1.0, 0.0)
         weights[near_b] = (0.0, 1.0)
-        gap = np.where(near_a | near_b, 0.0, gap)
+        gap = np.where(near_a | near_b | (np.abs(gap) <= snap), 0.0, gap)
     proj = xs + best_t[:, None] * snormal
     normals = snormal if slave_body == 1 else -snormal
     trib = tributary_lengths(pts, slave_facets, snodes)
@@ -522,15 +556,15 @@ def node_to_segment(points, slave_facets, slave_centroids, master_facets, master
 
 
 def obstacle_pairing(points, slave_facets, slave_centroids, obstacle: Obstacle, *, search_distance=None,
-                     slave_name="contact1", snap=0.0) -> Pairing:
+                     slave_name="contact1", snap=0.0, fixed=None) -> Pairing:
     """Pairing of a single body's contact boundary (body 1) with a rigid obstacle: each slave node's
     outer normal is cast onto the obstacle; the distance along it is the gap, exactly 0 within
     ``snap`` (a node meshed on the obstacle's surface: gmsh places it there to rounding, and a gap
     of -1e-16 would make a touching interface an interference).  GeometryError when no node meets
-    the obstacle (it does not face the body)."""
+    the obstacle (it does not face the body).  ``fixed``: see :func:`node_normals`."""
     pts = np.asarray(points, dtype=float)
     search = check_search_distance(search_distance)
-    snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name)
+    snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name, fixed)
     xs = pts[snodes]
     t, status = obstacle.ray(xs, snormal)
     t = np.where((status == 0) & (np.abs(t) <= snap), 0.0, t)

@@ -154,6 +154,10 @@ def test_example_nonmatching_case():
     with pytest.raises(case.CaseError, match=r'^\[contact\] pairing: non-matching contact interface.*pairing = '
                                              r'"segment" in \[contact\]\)$'):
         case.build_system(case.validate_case(raw))
+    # a friction list of the wrong length is known once the mesh is paired: the error names the key
+    raw = tomllib.loads('[geometry]\nkind = "two_blocks"\nnx = 4\nny = 2\n[contact]\nfriction = [0.1, 0.2]\n')
+    with pytest.raises(case.CaseError, match=r"^\[contact\] friction: .*one value per contact node \(shape \(4,\)\)"):
+        case.build_system(case.validate_case(raw))
 
 
 def test_example_obstacle_case():
@@ -232,6 +236,8 @@ def test_bad_contact_and_dirichlet_keys_name_the_key(text, words):
      ["unknown key 'scale' in [contact.obstacle]", "center, radius, inside"]),
     ('[geometry]\nkind = "block_on_foundation"\n[contact.obstacle]\nkind = "circle"\ncenter = [0, -1]\nradius = 0.5\n'
      'inside = "yes"\n', ["[contact.obstacle] inside", "'yes'"]),
+    ('[geometry]\nkind = "block_on_foundation"\n[contact]\nslave = "contact2"\n[contact.obstacle]\nkind = "line"\n'
+     'point = [0, -0.1]\nnormal = [0, 1]\n', ["[contact] slave", "(contact1=10)", "'contact2'", "master of contact1"]),
     ('[geometry]\nkind = "block_on_foundation"\nnx2 = 3\n', ["[geometry] nx2", "no body 2"]),
     ('[geometry]\nkind = "cylinder"\nhalf = true\n[loads.dirichlet]\ntop1 = {y = [0.0, -0.01]}\nsym1 = {x = 0.0}\n',
      ["[loads.dirichlet]", "half model", "sym2 = {x = 0.0}"]),

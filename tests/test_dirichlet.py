@@ -136,3 +136,28 @@ def test_half_model_with_symmetry_plane_gives_the_full_solution(friction):
     assert np.abs(sh.lam_t - weight * sf.lam_t[jf]).max() <= 1e-8 * sf.lam_n.max()
     if friction > 0:  # (at F = 0 stick and slip are one state)
         assert sh.states() == [sf.states()[j] for j in jf]
+
+
+@pytest.mark.filterwarnings("ignore::cfcontact.errors.PairingWarning")  # the cylinder's sides miss the block
+@pytest.mark.parametrize("friction", [0.5, 30.0])
+def test_a_curved_slave_on_the_symmetry_plane_gives_the_full_solution(friction):
+    """A half cylinder whose curved side is the slave (slave = "contact1"): its node on the axis
+    has one facet on its side, whose normal is tilted by half the facet's turn; with u_x held on
+    the plane in both bodies, its normal and tangential rows read the same u_y -- J(Z) was
+    singular (the condensed backend stopped, the full one stored points 0.47 off (1)-(3)).  The
+    normal is now the plane's (cfcontact.pairing.roller_normals), so the half model is the full
+    one's half: the same transitions, half the force."""
+    common = dict(width=2.0, depth=1.0, size=0.02, size_far=0.3, friction=friction, slave="contact1",
+                  indentation=(0.0, 0.02))
+    full = cfcontact.cylinder_on_block(**common)
+    half = cfcontact.cylinder_on_block(half=True, **common)
+    axis = np.flatnonzero(np.isclose(half.geometry.contact_points[:, 0], 0.0, atol=1e-12))
+    assert axis.size == 1 and half.no_tangent.tolist() == [j in axis for j in range(half.m)]
+    assert np.abs(half.geometry.normals[axis[0]]).tolist() == [0.0, 1.0]
+    pf, ph = (cfcontact.trace_path(s, 0.0, 1.0, method="exact") for s in (full, half))
+    assert pf.status == ph.status == "completed" and len(pf.transitions) == len(ph.transitions) > 5
+    assert np.allclose([t.alpha for t in ph.transitions], [t.alpha for t in pf.transitions], rtol=1e-10)
+    for alpha in (0.37, 1.0):
+        (sf,), (sh,) = pf.solutions_at(alpha), ph.solutions_at(alpha)
+        assert 2.0 * sh.lam_n.sum() == pytest.approx(sf.lam_n.sum(), rel=1e-10)
+    assert max(cfcontact.verify(half, y, a).worst() for a, y in ph.iter_points()) < 1e-12

@@ -309,3 +309,77 @@ def test_pairing_slave_body_two_flips_the_normal_and_signs():
     r2, n2, f2 = p2.entries()
     assert np.array_equal(n1, n2) and np.array_equal(f1, -f2)
     assert np.array_equal(p1.body_nodes()[:, 0], p2.body_nodes()[:, 1])
+
+
+# ------------------------------------------------------------ rollers and symmetry planes
+def test_roller_normals_turn_along_the_free_component():
+    """A node with one prescribed component moves along the other: its normal is turned along it
+    (keeping its side) when it is nearer to it; clamped, free, and nearly tangential nodes keep
+    theirs."""
+    c, s = np.cos(0.05), np.sin(0.05)
+    normals = np.array([[s, -c], [c, s], [s, -c], [s, -c], [c, s], [-s, c]])
+    fixed = np.array([[True, False], [False, True], [True, True], [False, False], [True, False], [True, False]])
+    turned = pairing.roller_normals(normals, fixed)
+    assert turned.tolist() == [[0.0, -1.0], [1.0, 0.0], [s, -c], [s, -c], [c, s], [0.0, 1.0]]
+    assert normals[0].tolist() == [s, -c]  # (a copy)
+
+
+def _quarter_hub(nodes, delta, friction):
+    """The press fit of demos/lame.py on a quarter of the hub: the annulus 0.3 < r < 1 in x, y >= 0
+    with ``nodes`` + 1 nodes on its outer arc (contact1), its inner arc clamped, the symmetry
+    planes x = 0 and y = 0 rollers, in a rigid bore of radius 1 - delta."""
+    from cfcontact import compat
+
+    with compat.gmsh_model("quarter_hub") as model:
+        occ = model.occ
+        pa1, pb1 = occ.addPoint(lame.INNER, 0, 0), occ.addPoint(lame.OUTER, 0, 0)
+        pa2, pb2 = occ.addPoint(0, lame.INNER, 0), occ.addPoint(0, lame.OUTER, 0)
+        centre = occ.addPoint(0, 0, 0)
+        edges = [occ.addLine(pa1, pb1), occ.addCircleArc(pb1, centre, pb2), occ.addLine(pb2, pa2),
+                 occ.addCircleArc(pa2, centre, pa1)]
+        surface = occ.addPlaneSurface([occ.addCurveLoop(edges)])
+        occ.synchronize()
+        for dim, tags, num, name in ((2, [surface], 1, "body1"), (1, [edges[1]], 10, "contact1"),
+                                     (1, [edges[3]], 14, "inner1"), (1, [edges[0]], 15, "symy1"),
+                                     (1, [edges[2]], 16, "symx1")):
+            model.addPhysicalGroup(dim, tags, num)
+            model.setPhysicalName(dim, num, name)
+        model.mesh.setTransfiniteCurve(edges[1], nodes + 1)
+        import gmsh
+
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5 * np.pi * lame.OUTER / nodes)
+        model.mesh.generate(2)
+        return cfcontact.assemble_contact_system(
+            model, E=lame.E, nu=lame.NU, clamp=("inner1",), friction=friction,
+            dirichlet={"symx1": {"x": 0.0}, "symy1": {"y": 0.0}},
+            obstacle={"kind": "circle", "center": (0.0, 0.0), "radius": lame.OUTER - delta, "inside": True})
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_a_quarter_hub_on_two_symmetry_planes_is_the_press_fit(friction):
+    """The end nodes of the quarter's contact arc lie on the symmetry planes, each with one free
+    component: their normals are radial (not the one facet's, tilted by half its turn), their gap
+    the interference, and they have no tangential unknown (before, their normal and tangential
+    rows read the same component: J(Z) singular, the condensed backend stopped).  The pressure
+    is Lame's at every node, the end nodes included (they were 2.5 % off at F = 0.3)."""
+    delta = 1e-4
+    system = _quarter_hub(16, delta, friction)
+    x = system.geometry.contact_points[:, :2]
+    ends = np.flatnonzero(np.isclose(x[:, 0], 0.0, atol=1e-12) | np.isclose(x[:, 1], 0.0, atol=1e-12))
+    assert system.m == 17 and ends.size == 2 and system.no_tangent[ends].all() and not system.no_tangent.sum() > 2
+    assert np.allclose(system.geometry.normals[:, :2], x / np.hypot(*x.T)[:, None], atol=1e-12)
+    assert np.allclose(system.gap, -delta, rtol=1e-12)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed" and max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
+    (sol,) = path.solutions_at(1.0)
+    pressure = sol.lam_n / system.geometry.tributary
+    assert np.abs(pressure / lame.lame_pressure(delta) - 1.0).max() < 6e-3
+    assert not sol.lam_t[ends].any()
+
+
+def test_a_rotated_non_matching_interface_has_no_rounding_gaps():
+    """Slave nodes on the master's facets to rounding (a non-matching interface turned by 30 deg:
+    the rays' distances were +-1e-16) have the gap 0, as on the unturned interface."""
+    for angle in (0.0, 30.0):
+        system = cfcontact.two_blocks(nx=12, ny=2, nx2=17, ny2=2, angle=angle, cell="triangle", pairing="segment")
+        assert system.m == 12 and not system.has_gap and not system.gap.any(), angle
