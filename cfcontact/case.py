@@ -551,8 +551,24 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
         raise CaseError(f"[output] animation_frames: must be >= 1, got {output['animation_frames']}")
     if "magnification" in output and not output["magnification"] > 0:
         raise CaseError(f"[output] magnification: must be > 0, got {output['magnification']!r}")
+    _check_zoom(output.get("zoom"), case["path"])
     case["output"] = output
     return case
+
+
+def _check_zoom(zoom, path):
+    """[output] zoom against the range of the path's parameter (alpha, or F with parameter =
+    "friction"): a window outside it can hold no point of the path."""
+    if zoom is None:
+        return
+    if path.get("parameter") == "friction":
+        name, ends = "F", (path["friction_start"], path["friction_end"])
+    else:
+        name, ends = "alpha", (path["alpha_start"], path["alpha_end"])
+    lo, hi = min(ends), max(ends)
+    if zoom[1] < lo or zoom[0] > hi:
+        raise CaseError(f"[output] zoom: the window {zoom[0]:g} <= {name} <= {zoom[1]:g} lies outside the path's "
+                        f"range {lo:g} .. {hi:g}")
 
 
 def _validate_geometry(geo, base_dir):

@@ -21,11 +21,13 @@ import json
 import logging
 import math
 import os
+import re
 import signal
 import sys
 import threading
 import time
 import traceback
+import warnings
 
 from cfcontact.case import CaseError, check_size, load_case, parse_component, python_sigint, reference_text
 from cfcontact.errors import CfcontactError, InputError
@@ -111,6 +113,86 @@ def _logging(level):
         logger.removeHandler(handler)
         logger.setLevel(old_level)
         logger.propagate = old_prop
+
+
+#: "file:line: Category: message" -- the first line of a formatted Python warning
+_WARNING_LINE = re.compile(r"^.*?:\d+: (\w+): (.*)$")
+
+
+def _warning_text(category_name: str, message: str) -> str:
+    """One line for a Python warning: its message (the category's name too unless it is one of
+    cfcontact's own, e.g. PairingWarning)."""
+    first = str(message).strip().splitlines()[0] if str(message).strip() else ""
+    return first if category_name == "PairingWarning" else f"{category_name}: {first}"
+
+
+class _PyWarningsHandler(logging.Handler):
+    """Python warnings routed into logging (dolfinx's import calls ``logging.captureWarnings``:
+    the "py.warnings" logger then gets "file:line: Category: message" and the source line) as
+    one line each, like the command's other warnings."""
+
+    def __init__(self, show):
+        super().__init__()
+        self.show = show
+
+    def emit(self, record):
+        text = record.getMessage().strip()
+        match = _WARNING_LINE.match(text.splitlines()[0] if text else "")
+        self.show(_warning_text(*match.groups()) if match else text)
+
+
+@contextlib.contextmanager
+def _python_warnings(args):
+    """During a command, every Python warning is one line "cfcontact: warning: ..." on stderr
+    (none with --quiet), not the interpreter's two lines with the source file and line; both
+    routes are caught, the interpreter's own and logging's once dolfinx has been imported."""
+    def show(text):
+        if not getattr(args, "quiet", False):
+            progress = _ProgressAwareHandler.progress
+            if progress is not None:
+                progress.clear()
+            print(f"cfcontact: warning: {text}", file=sys.stderr, flush=True)
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        show(_warning_text(category.__name__, message))
+
+    logger = logging.getLogger("py.warnings")
+    handler = _PyWarningsHandler(show)
+    saved = warnings.showwarning, logger.propagate
+    warnings.showwarning = showwarning
+    logger.addHandler(handler)
+    logger.propagate = False
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.propagate = saved[1]
+        if warnings.showwarning is showwarning:
+            warnings.showwarning = saved[0]
+
+
+def output_file(out, flag="-o") -> str:
+    """``out`` as a file to write (CaseError naming ``flag``: an existing folder of that name, a
+    parent that is a file or cannot be created); its folder is created."""
+    if os.path.isdir(out):
+        raise CaseError(f"{flag}: {out!r} is a folder, not a file")
+    output_folder(os.path.dirname(os.path.abspath(out)), flag, out)
+    return out
+
+
+def output_folder(folder, flag="-o", what=None) -> str:
+    """``folder`` created if missing (CaseError naming ``flag`` when a file stands in its way)."""
+    what = what or folder
+    probe = os.path.abspath(folder)
+    while not os.path.exists(probe) and os.path.dirname(probe) != probe:
+        probe = os.path.dirname(probe)
+    if not os.path.isdir(probe):
+        raise CaseError(f"{flag}: cannot write {what!r}: {probe!r} is a file, not a folder")
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise CaseError(f"{flag}: cannot create the folder {folder!r} for {what!r}: {exc.strerror}") from None
+    return folder
 
 
 def _say(args, *text):
@@ -277,19 +359,34 @@ def cmd_plot(args):
     out = args.output or ("multiplicity.png" if args.multiplicity else "path.png")
     if os.path.splitext(out)[1].lower() not in (".png", ".pdf"):
         raise CaseError(f"-o: unsupported figure format {out!r}; use .png or .pdf")
+    output_file(out)
     from cfcontact.plotting import plot_multiplicity, plot_path, save_figure
 
     if args.multiplicity:
         fig = plot_multiplicity(path, xlabel=parameter_label(path))
     else:
-        fig = plot_path(path, component=component, zoom=zoom, xlabel=parameter_label(path))
+        try:
+            fig = plot_path(path, component=component, zoom=zoom, xlabel=parameter_label(path))
+        except InputError as exc:
+            if zoom is None:
+                raise
+            raise InputError(f"--zoom: {exc}") from None
     save_figure(fig, out)
     _say(args, f"wrote {out}")
     return EXIT_OK
 
 
+def _animation_target(args):
+    """Check (and prepare the folder of) ``--animation``: a .gif/.mp4 file or a folder of frames."""
+    if os.path.splitext(args.animation)[1].lower() in (".gif", ".mp4"):
+        output_file(args.animation, "--animation")
+    else:
+        output_folder(os.path.dirname(os.path.abspath(args.animation)), "--animation", args.animation)
+
+
 def _render_animation(args, path, ws, src):
     from cfcontact import render
+
     stress = None
     if args.stress:  # cells coloured by the von Mises stress, one scale for all frames
         from cfcontact import fields
@@ -315,6 +412,8 @@ def cmd_render(args):
     ws = tuple(args.window_size) if args.window_size else None
     if ws is not None and min(ws) < 16:
         raise CaseError(f"--window-size: width and height must be >= 16, got {ws}")
+    if args.animation:
+        _animation_target(args)
     if args.animation and args.alpha is None and not args.panel and args.output is None:
         _render_animation(args, path, ws, src)
         return EXIT_OK
@@ -331,6 +430,7 @@ def cmd_render(args):
     out = args.output or "render.png"
     if os.path.splitext(out)[1].lower() != ".png":
         raise CaseError(f"-o: renders are PNG files, got {out!r}")
+    output_file(out)
     stresses = None
     if args.stress:
         from cfcontact import fields
@@ -356,6 +456,7 @@ def cmd_export(args):
     out = args.output or "solutions.xdmf"
     if os.path.splitext(out)[1].lower() not in (".xdmf", ".xmf"):
         raise CaseError(f"-o: XDMF files end in .xdmf or .xmf, got {out!r}")
+    output_file(out)
     from cfcontact import fields
 
     try:
@@ -395,8 +496,6 @@ def _saved_contact_settings(src):
 
 def cmd_info(args):
     if args.saved.endswith(".toml") and os.path.isfile(args.saved):  # a case: build its model, report the pairing
-        import warnings
-
         from cfcontact.case import build_system
         from cfcontact.errors import PairingWarning
         from cfcontact.report import format_model_report, model_report
@@ -538,6 +637,9 @@ def cmd_bench(args):
     """``cfcontact bench``: the benchmark of :mod:`cfcontact.bench` (tables on stdout, JSON file)."""
     from cfcontact import bench
 
+    if os.path.exists(args.output) and not os.path.isdir(args.output):
+        raise CaseError(f"--output: {args.output!r} is a file, not a folder")
+    output_folder(args.output, "--output")
     return bench.run(args, " ".join(["cfcontact"] + sys.argv[1:]) if _PROGRAM["main"] else "cfcontact bench")
 
 
@@ -559,6 +661,8 @@ def cmd_map(args):
     from cfcontact.map_run import map_case
 
     case = load_case(args.case)
+    if args.output:
+        output_folder(os.path.dirname(os.path.abspath(args.output)), "-o", args.output)
     _say(args, f"cfcontact: friction map of {os.path.basename(case['_file'])}")
     res = map_case(case, args.output, tuple(args.friction_range) if args.friction_range else None,
                    args.frictions, args.alphas, args.mark, curves=not args.no_curves, force=args.force)
@@ -720,7 +824,7 @@ def _main(argv) -> int:
                   file=sys.stderr, flush=True)
         return EXIT_INPUT
     level = logging.ERROR if args.quiet else logging.INFO if args.verbose else logging.WARNING
-    with _logging(level):
+    with _logging(level), _python_warnings(args):
         try:
             return int(args.func(args) or 0)
         except (CaseError, InputError) as exc:

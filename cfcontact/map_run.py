@@ -10,6 +10,7 @@ the files appear together or not at all.  Library code: nothing is printed.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import time
@@ -43,8 +44,12 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
     else:
         stem = os.path.splitext(os.path.basename(case["_file"]))[0]
         out = os.path.join(os.path.dirname(case["_file"]), f"{stem}_map")
-    if os.path.exists(out) and not force:
-        raise CaseError(f"the output folder {out!r} exists; use --force to replace it or --output DIR")
+    if os.path.exists(out):
+        if not force:
+            raise CaseError(f"the output folder {out!r} exists; use --force to replace it or --output DIR")
+        if not _is_map_folder(out):
+            raise CaseError(f"refusing to replace {out!r}: it is not a cfcontact map folder (no map.json); "
+                            "choose another --output")
     F_lo, F_hi = friction_range if friction_range is not None else default_friction_range(case)
     if not (0 <= F_lo < F_hi and np.isfinite(F_hi)):
         raise CaseError(f"--friction-range: need 0 <= F0 < F1, got {F_lo} {F_hi}")
@@ -81,4 +86,16 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
     return {"output": out, "files": files, "critical": crit, "map_timings": fmap.timings,
             "curve_timings": fc.timings if fc is not None else None,
             "curves": len(fc.curves) if fc is not None else 0, "cusps": len(fc.cusps) if fc is not None else 0,
-            "max_solutions": int(fmap.counts.max())}
+            "max_solutions": max([int(fmap.counts.max(initial=0))] + [c for iv in fmap.intervals for _, _, c in iv])}
+
+
+def _is_map_folder(path) -> bool:
+    """Is ``path`` a folder that :func:`map_case` wrote (its map.json says so)?  Only such a
+    folder is replaced with ``force``."""
+    from cfcontact.fmap import MAP_FORMAT
+
+    try:
+        with open(os.path.join(path, "map.json")) as fh:
+            return json.load(fh).get("format") == MAP_FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False

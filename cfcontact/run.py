@@ -331,6 +331,12 @@ def load_checkpoint(partial):
                 saved = load_saved_path(os.path.join(ck, "path"))
             except InputError as exc:
                 raise CaseError(f"the checkpoint is damaged: {exc}; start over with --force") from None
+            if state["method"] != saved.method:
+                raise CaseError(f"{ck}: state.json is of method {state['method']!r}, path/ of {saved.method!r}; "
+                                f"start over with --force")
+            if state.get("traced") and saved.status in ("running", "stopped by callback"):
+                raise CaseError(f"{ck}: state.json says the path was traced to its end, but path/ is a stopped path "
+                                f"(status {saved.status!r}); start over with --force")
             if state["system_checksum"] != saved.system_checksum:
                 raise CaseError(f"{ck}: state.json and path/ belong to different systems (checksums "
                                 f"{str(state['system_checksum'])[:12]}... and {str(saved.system_checksum)[:12]}...); "
@@ -348,6 +354,9 @@ def _read_state(fn) -> dict:
         raise CaseError(f"{fn}: unreadable or truncated ({exc}); start over with --force") from None
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
         raise CaseError(f"{os.path.dirname(fn)}: not a cfcontact checkpoint")
+    if state.get("version") != 1:
+        raise CaseError(f"{fn}: checkpoint version {state.get('version')!r} is not one this cfcontact reads (1); "
+                        "start over with --force")
     for key, kinds in (("resumable", bool), ("physics", dict), ("method", str)):
         if not isinstance(state.get(key), kinds):
             raise CaseError(f"{fn}: key {key!r} is missing or of the wrong type; start over with --force")
@@ -407,8 +416,14 @@ def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, sys
         t = time.perf_counter()
         from cfcontact.plotting import plot_multiplicity, plot_path, save_figure
 
-        fig = plot_path(path, component=component, zoom=out.get("zoom"),
-                        title=case.get("title"), xlabel=parameter_label(path))
+        try:
+            fig = plot_path(path, component=component, zoom=out.get("zoom"),
+                            title=case.get("title"), xlabel=parameter_label(path))
+        except InputError as exc:  # a zoom window the path does not reach (it turned back before)
+            if out.get("zoom") is None:
+                raise
+            warn(f"[output] zoom: {exc}; path.{out['plot_formats'][0]} has no zoom panel")
+            fig = plot_path(path, component=component, title=case.get("title"), xlabel=parameter_label(path))
         for fmt in out["plot_formats"]:
             save_figure(fig, os.path.join(outdir, f"path.{fmt}"))
             files.append(f"path.{fmt}")

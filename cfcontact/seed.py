@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from cfcontact.errors import ConvergenceError
+from cfcontact.errors import ConvergenceError, InputError
 from cfcontact.options import AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point
@@ -62,10 +62,19 @@ class SeedStepper(Stepper):
             self._start_clock(path.stats)
             self.start = {k: path.stats[k] for k in ("start", "homotopy_transitions") if k in path.stats}
             self.path = path
-            self.h, self.steps = float(state["h"]), int(state["steps"])
-            self.last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c)
-                              for k, sg, r, c in state.get("last_seen", [])}
-            self.done = bool(state.get("done", False))
+            try:
+                self.h, self.steps = float(state["h"]), int(state["steps"])
+                self.last_seen = {(bytes.fromhex(k), int(sg), int(r)): int(c)
+                                  for k, sg, r, c in state.get("last_seen", [])}
+                self.done = state.get("done", False)
+            except (KeyError, TypeError, ValueError) as exc:
+                raise InputError(f"cannot resume: incomplete or invalid resume state ({exc!r})") from None
+            if not (np.isfinite(self.h) and self.h > 0) or self.steps < 0 or not isinstance(self.done, bool):
+                raise InputError(f"cannot resume: invalid resume state (h = {self.h!r}, steps = {self.steps!r}, done = "
+                                 f"{self.done!r}; expected h > 0, steps >= 0, done true or false)")
+            if self.done and path._alphas[-1] not in (span.lo, span.hi):
+                raise InputError(f"cannot resume: the resume state says the run ended, but its path ends at alpha = "
+                                 f"{path._alphas[-1]!r}, inside the range [{span.lo!r}, {span.hi!r}]")
             self.branch = path.branches[-1]
             self.Z, self.s = self.branch.sets, self.branch.orientation
             self.alpha, self.y = path._alphas[-1], path._ys[-1]

@@ -702,9 +702,16 @@ class SolutionPath:
         branches with sets and orientation, transitions, events); ``fields.npz`` holds the
         arrays (alphas, ys, point_branch, the branches in reference form -- alpha_ref, Y_ref,
         dY --, N and T in CSR form, friction, gap, geometry of a FEM model).  Lazy branches are formed first (one batched solve), so
-        the saved file is the same as for an eagerly formed path.
+        the saved file is the same as for an eagerly formed path.  An existing ``path`` is
+        replaced only when it is a saved path or an empty folder (InputError otherwise: nothing
+        else is overwritten).
         """
         path = os.fspath(path)
+        if not path.strip():
+            raise InputError("save needs a folder name, got an empty path")
+        if os.path.lexists(path) and not _replaceable(path, self.FORMAT):
+            raise InputError(f"refusing to replace {path!r}: it is not a saved cfcontact path (a folder with path.json) "
+                             "nor an empty folder; choose another folder")
         parent = os.path.dirname(os.path.abspath(path))
         os.makedirs(parent, exist_ok=True)
         tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
@@ -792,6 +799,21 @@ class SolutionPath:
 
 
 # ------------------------------------------------------------ checks of saved files
+def _replaceable(path, fmt) -> bool:
+    """May :meth:`SolutionPath.save` replace ``path``: an empty folder, or a folder whose path.json
+    says it is a saved path of format ``fmt`` (not the working directory itself)?"""
+    if os.path.islink(path) or not os.path.isdir(path) or os.path.abspath(path) == os.getcwd():
+        return False
+    names = os.listdir(path)
+    if not names:
+        return True
+    try:
+        with open(os.path.join(path, "path.json")) as fh:
+            return json.load(fh).get("format") == fmt
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 class _Bad(Exception):
     """What is wrong with one saved item (turned into an InputError naming the file)."""
 
@@ -899,6 +921,16 @@ def _check_meta(meta):
         for key in ("index", "alpha", "kind", "node", "set", "bracket"):
             if key not in t:
                 raise _Bad(f"missing key {key!r}{where}")
+        _finite_number(t, "alpha", where)
+        # (node -1: an alternative followed at a branch point changes no node)
+        if not (isinstance(t["node"], int) and not isinstance(t["node"], bool) and -1 <= t["node"] < m):
+            raise _Bad(f"transitions[{k}].node = {t['node']!r} is not a contact node (0..{m - 1})")
+        if t["kind"] not in ("transversal", "fold"):
+            raise _Bad(f"transitions[{k}].kind = {t['kind']!r} is not 'transversal' or 'fold'")
+        bracket = t["bracket"]
+        if not (isinstance(bracket, list) and len(bracket) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in bracket)):
+            raise _Bad(f"transitions[{k}].bracket = {bracket!r} is not two numbers")
     for k, e in enumerate(meta["events"]):
         if not isinstance(e, dict) or not {"kind", "alpha", "message"} <= set(e):
             raise _Bad(f"events[{k}] is not an event (kind, alpha, message)")
@@ -995,6 +1027,12 @@ def validate_saved(meta, arrays, path):
                 raise InputError(f"{where}: array {name!r} refers to nodes outside 0..{npts - 1}")
         if len(arrays["geometry_cell_body"]) != len(arrays["geometry_cells"]):
             raise InputError(f"{where}: arrays 'geometry_cell_body' and 'geometry_cells' differ in length")
+        for name in ("geometry_material", "geometry_obstacle"):  # (JSON text)
+            if name in arrays:
+                try:
+                    json.loads(str(arrays[name]))
+                except ValueError:
+                    raise InputError(f"{where}: array {name!r} is not JSON text") from None
 
 
 def _same_point(a, b, n, rtol) -> bool:

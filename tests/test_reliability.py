@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from cfcontact import cli
+from cfcontact.errors import InputError
 from cfcontact.path import SolutionPath
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -93,6 +94,7 @@ BAD_RUNS = [
     ("stop-after-folds 0", GEO, ["--stop-after-folds", "0"], ["--stop-after-folds", ">= 1"]),
     ("stop-after-transitions x", GEO, ["--stop-after-transitions", "x"], ["--stop-after-transitions", "'x'"]),
     ("unknown flag", GEO, ["--frobnicate"], ["--frobnicate"]),
+    ("zoom outside the range", GEO + "[output]\nzoom = [5.0, 6.0]\n", [], ["[output] zoom", "outside", "0 .. 1"]),
 ]
 
 
@@ -136,6 +138,40 @@ def test_other_command_line_mistakes(tmp_path, capsys):
         assert cli.main(bad) == 2, bad
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and "error: argument" in err, err
+
+
+def test_outputs_that_cannot_be_written_exit_2(tmp_path, capsys, stopped):
+    """An output that is a folder, or under a file, is a bad input (exit 2, one line naming the
+    flag), not a failure; --force replaces only what cfcontact wrote (a map folder, a saved path)."""
+    done = stopped[2]
+    (tmp_path / "d.png").mkdir()
+    (tmp_path / "d.xdmf").mkdir()
+    (tmp_path / "afile").write_text("keep")
+    case = _write(tmp_path, GEO)
+    for command, words in ((["plot", done, "-o", str(tmp_path / "d.png")], ["-o", "is a folder, not a file"]),
+                           (["plot", done, "-o", str(tmp_path / "afile" / "x.png")], ["-o", "is a file, not a folder"]),
+                           (["export", done, "-o", str(tmp_path / "d.xdmf")], ["-o", "is a folder"]),
+                           (["map", case, "-o", str(tmp_path / "afile" / "m")], ["-o", "is a file, not a folder"]),
+                           (["map", case, "-o", str(tmp_path / "afile"), "--force"], ["not a cfcontact map folder"]),
+                           (["map", case, "-o", case, "--force"], ["not a cfcontact map folder"]),
+                           (["bench", "--output", str(tmp_path / "afile")], ["--output", "is a file"])):
+        assert cli.main(command) == 2, command
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Errno" not in err, err
+        for w in words:
+            assert w in err, (w, err)
+    assert (tmp_path / "afile").read_text() == "keep" and open(case).read() == GEO
+    path = SolutionPath.load(os.path.join(done, "path"))
+    with pytest.raises(InputError, match="not a saved cfcontact path"):
+        path.save(str(tmp_path / "afile"))
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "a.txt").write_text("keep")
+    with pytest.raises(InputError, match="not a saved cfcontact path"):
+        path.save(str(tmp_path / "notes"))
+    assert (tmp_path / "notes" / "a.txt").read_text() == "keep"
+    path.save(str(tmp_path / "p"))
+    path.save(str(tmp_path / "p"))  # (a saved path is replaced)
+    assert SolutionPath.load(str(tmp_path / "p")).alphas.tolist() == path.alphas.tolist()
 
 
 # ------------------------------------------------------------------ numbers (the API)
@@ -238,6 +274,12 @@ CORRUPTIONS = [
      ["point_branch"]),
     ("fields.npz pickled", "fields.npz", lambda fn: np.save(open(fn, "wb"), np.array([{}]), allow_pickle=True),
      ["fields.npz"]),
+    ("path.json transition node", "path.json", lambda fn: _json_edit(fn, lambda d: d["transitions"][0].update(node=99)),
+     ["path.json", "transitions[0].node = 99"]),
+    ("path.json transition alpha", "path.json",
+     lambda fn: _json_edit(fn, lambda d: d["transitions"][0].update(alpha="x")), ["path.json", "'alpha'"]),
+    ("fields.npz material", "fields.npz",
+     lambda fn: _npz_edit(fn, lambda a: a.update(geometry_material=np.array("not json"))), ["geometry_material", "JSON"]),
 ]
 
 
@@ -274,6 +316,14 @@ STATE_CORRUPTIONS = [
      ["state.json", "h", "finite"]),
     ("other checksum", lambda fn: _json_edit(fn, lambda d: d.update(system_checksum="0" * 64)),
      ["different systems"]),
+    ("negative step", lambda fn: _json_edit(fn, lambda d: d["resume_state"].update(h=-1.0)),
+     ["cannot resume", "h = -1.0", "h > 0"]),
+    ("missing step", lambda fn: _json_edit(fn, lambda d: d["resume_state"].pop("h")), ["cannot resume", "'h'"]),
+    ("run said ended", lambda fn: _json_edit(fn, lambda d: d["resume_state"].update(done=True)),
+     ["the run ended", "inside the range"]),
+    ("other version", lambda fn: _json_edit(fn, lambda d: d.update(version=99)), ["version 99"]),
+    ("other method", lambda fn: _json_edit(fn, lambda d: d.update(method="exact")), ["method 'exact'", "'seed'"]),
+    ("said traced", lambda fn: _json_edit(fn, lambda d: d.update(traced=True)), ["traced to its end", "stopped"]),
 ]
 
 
