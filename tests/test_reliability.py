@@ -94,6 +94,8 @@ BAD_RUNS = [
     ("stop-after-folds 0", GEO, ["--stop-after-folds", "0"], ["--stop-after-folds", ">= 1"]),
     ("stop-after-transitions x", GEO, ["--stop-after-transitions", "x"], ["--stop-after-transitions", "'x'"]),
     ("unknown flag", GEO, ["--frobnicate"], ["--frobnicate"]),
+    ("cylinder too fine", '[geometry]\nkind = "cylinder"\nsize = 1e-6\n', [], ["[geometry] size = 1e-06", "DOFs"]),
+    ("punch too fine", '[geometry]\nkind = "punch"\nsize = 1e-3\nsize_far = 1e-3\n', [], ["[geometry] size = 0.001", "GiB"]),
     ("zoom outside the range", GEO + "[output]\nzoom = [5.0, 6.0]\n", [], ["[output] zoom", "outside", "0 .. 1"]),
 ]
 
@@ -121,6 +123,19 @@ def test_allow_large_overrides_the_memory_estimate(tmp_path):
         case_file.check_size(case, available=2.0**30)
     assert case_file.check_size(case, allow_large=True, available=2.0**30)["n"] == est["n"]
     assert case_file.check_size(case, available=2.0**40)["memory"] < 2.0**40
+
+
+@pytest.mark.parametrize("kind,extra", [("cylinder", 'size = 0.05\ncell = "quadrilateral"\n'),
+                                        ("punch", "size = 0.03\nhalf = true\n")])
+def test_size_estimate_of_the_graded_meshes(tmp_path, kind, extra):
+    """The cylinder's and punch's node counts are estimated from their size fields (no meshing):
+    within 0.7 to 1.6 times gmsh's."""
+    from cfcontact import case as case_file
+
+    case = case_file.load_case(_write(tmp_path, f'[geometry]\nkind = "{kind}"\n{extra}'))
+    est = case_file.estimate_size(case)
+    system = case_file.build_system(case)
+    assert 0.7 <= est["n"] / system.n <= 1.6 and 0.8 <= est["m"] / system.m <= 1.6, (est, system.n, system.m)
 
 
 def test_other_command_line_mistakes(tmp_path, capsys):
