@@ -471,6 +471,16 @@ def run(args, argv_text="") -> int:
     time_limit = getattr(args, "time_limit", 600.0)
     if not (0 < time_limit < math.inf):
         raise InputError(f"--time-limit must be a positive number of seconds, got {time_limit}")
+    timeout = getattr(args, "timeout", 1.0)
+    if not (0 < timeout < math.inf):
+        raise InputError(f"--timeout must be a positive number of seconds, got {timeout}")
+    ranks = getattr(args, "mpi", 1)
+    if ranks is not None and ranks < 1:
+        raise InputError(f"--mpi must be a number of MPI ranks >= 1, got {ranks}")
+    for kv in getattr(args, "petsc_option", None) or []:
+        key = kv.partition("=")[0].lstrip("-")
+        if not key or not key.replace("_", "").isalnum():
+            raise InputError(f"--petsc-option must be KEY=VALUE (e.g. mat_mumps_icntl_14=200) or a flag KEY, got {kv!r}")
     paths = getattr(args, "paths", None)
     if paths is not None and paths < 1:
         raise InputError(f"--paths must be >= 1, got {paths}")

@@ -115,6 +115,10 @@ def _logging(level):
         logger.propagate = old_prop
 
 
+#: The largest friction coefficient of a friction map's range (Coulomb coefficients of real
+#: materials are below 10; F = 30 already sticks every node of the seed's models)
+MAX_FRICTION = 1e6
+
 #: "file:line: Category: message" -- the first line of a formatted Python warning
 _WARNING_LINE = re.compile(r"^.*?:\d+: (\w+): (.*)$")
 
@@ -660,6 +664,12 @@ def cmd_map(args):
     """``cfcontact map CASE.toml``: the friction map of the case's load path (:mod:`cfcontact.map_run`)."""
     from cfcontact.map_run import map_case
 
+    bad = [m for m in (args.mark or []) if not (math.isfinite(m) and m >= 0)]
+    if bad:
+        raise CaseError(f"--mark: friction coefficients are finite numbers >= 0, got {bad[0]}")
+    if args.friction_range and not all(math.isfinite(F) and 0 <= F <= MAX_FRICTION for F in args.friction_range):
+        raise CaseError(f"--friction-range: need 0 <= F0 < F1 <= {MAX_FRICTION:g}, got {args.friction_range[0]} "
+                        f"{args.friction_range[1]}")
     case = load_case(args.case)
     if args.output:
         output_folder(os.path.dirname(os.path.abspath(args.output)), "-o", args.output)

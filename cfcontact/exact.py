@@ -1991,6 +1991,8 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     if tree:
         overrides["tree"] = True
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
+    if callback is not None and not callable(callback):  # (the monitor is checked where it is used)
+        raise InputError(f"callback must be a function of a PathPoint (or None), got {callback!r}")
     return ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
                         orientation=orientation, monitor=monitor).run(callback)
 
@@ -2005,6 +2007,9 @@ def trace_tree(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     (:func:`cfcontact.backend.select_solver`: the condensed solver while its dense data fit; on a
     punch with m = 69 the PETSc backend's start alone took 108 s, the condensed one's tree 0.14 s
     after the path's set-up)."""
+    method = kwargs.pop("method", "exact")
+    if method != "exact":
+        raise InputError(f"trace_tree follows the exact method's branch points: method must be 'exact', got {method!r}")
     return trace_exact(system, alpha_start, alpha_end, tree=True, **kwargs)
 
 

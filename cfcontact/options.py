@@ -13,6 +13,7 @@ Nothing here imports PETSc or dolfinx.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field, fields
 from typing import Optional
 
@@ -71,6 +72,16 @@ class PathOptions:
 
     def __post_init__(self):
         bad = []
+        for f in fields(self):  # the types first: the comparisons below need numbers
+            v, kind = getattr(self, f.name), f.metadata.get("kind")
+            if v is None and f.default is None:
+                continue
+            if kind == "float" and not (isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)):
+                raise InputError(f"PathOptions: {f.name} must be a finite number, got {v!r}")
+            if kind == "int" and not (isinstance(v, numbers.Integral) and not isinstance(v, bool)):
+                raise InputError(f"PathOptions: {f.name} must be an integer, got {v!r}")
+            if kind == "bool" and v not in (True, False):
+                raise InputError(f"PathOptions: {f.name} must be true or false, got {v!r}")
         if not (0 < self.h_min <= self.h_max):
             bad.append(f"need 0 < h_min <= h_max, got h_min={self.h_min}, h_max={self.h_max}")
         if not (self.c_p > 1):

@@ -96,6 +96,8 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     check_method(method)
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
     check_resume_method(resume, method)
+    if callback is not None and not callable(callback):  # (the monitor is checked where it is used)
+        raise InputError(f"callback must be a function of a PathPoint (or None), got {callback!r}")
     system.check_positive_definite()  # before any backend factors K (cached: path_stepper checks again for free)
     solver = solver if solver is not None else select_solver(system, method, backend)
     return path_stepper(system, span, opts, method, y0, solver, resume, monitor).run(callback)

@@ -182,6 +182,8 @@ def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True,
     title, xlabel, ylabel : labels (ylabel default e.g. "λν at node 12").
     figsize, dpi : size of a new figure in inches and dots per inch (PNG pixels = figsize * dpi).
     """
+    _check_path(path)
+    _check_figure_args(figsize, dpi)
     if zoom_style not in ("panel", "inset"):
         raise InputError(f"zoom_style must be 'panel' or 'inset', got {zoom_style!r}")
     component, idx = _resolve_component(path, component)
@@ -225,6 +227,24 @@ def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True,
     return fig
 
 
+def _check_path(path):
+    """InputError unless ``path`` is a solution path (a SolutionPath or a FrictionPath)."""
+    if not (hasattr(path, "multiplicity_intervals") and hasattr(path, "lams")):
+        raise InputError(f"path must be a SolutionPath (trace_path's result or SolutionPath.load), got "
+                         f"{type(path).__name__}")
+
+
+def _check_figure_args(figsize, dpi):
+    try:
+        ok = len(figsize) == 2 and all(np.isfinite(float(v)) and float(v) > 0 for v in figsize)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"figsize must be (width, height) in inches, both > 0, got {figsize!r}")
+    if dpi is not None and not (isinstance(dpi, (int, float)) and np.isfinite(dpi) and dpi > 0):
+        raise InputError(f"dpi must be a number > 0, got {dpi!r}")
+
+
 def _multiplicity_steps(path, alpha_range=None):
     """(edges, counts) of the steps of :meth:`SolutionPath.multiplicity_intervals`."""
     intervals = path.multiplicity_intervals(alpha_range)
@@ -243,6 +263,8 @@ def plot_multiplicity(path, ax=None, title: Optional[str] = None, xlabel: str = 
     such interval (at its midpoint) and drawn as steps (``Axes.stairs``, gid "multiplicity").
     Values exactly at branch ends (transition points) are not shown.
     """
+    _check_path(path)
+    _check_figure_args(figsize, dpi)
     edges, counts = _multiplicity_steps(path, alpha_range)
     if ax is None:
         fig, (ax,) = _new_figure(figsize, dpi)
@@ -321,12 +343,20 @@ def save_figure(fig: Figure, path, dpi: Optional[float] = None) -> str:
 
     The PNG has exactly figsize * dpi pixels (no tight bounding box).  Returns the path written.
     """
+    if not isinstance(fig, Figure):
+        raise InputError(f"fig must be a matplotlib Figure (plot_path's result), got {type(fig).__name__}")
+    _check_figure_args((1.0, 1.0), dpi)
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in SUPPORTED_FORMATS:
         raise InputError(f"unsupported figure format {ext or '(no extension)'!r} for {path!r}; "
                          f"use one of {', '.join(SUPPORTED_FORMATS)}")
+    if os.path.isdir(path):
+        raise InputError(f"cannot write the figure {path!r}: it is a folder")
     parent = os.path.dirname(os.path.abspath(path))
-    os.makedirs(parent, exist_ok=True)
+    try:
+        os.makedirs(parent, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot write the figure {path!r}: no folder {parent!r} ({exc.strerror})") from None
     fig.savefig(path, format=ext[1:], dpi=fig.dpi if dpi is None else dpi)
     return path

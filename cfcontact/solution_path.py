@@ -556,7 +556,7 @@ class SolutionPath:
 
         Returns a list of :class:`Solution` sorted by branch order.
         """
-        alpha = float(alpha)
+        alpha = _alpha_value(alpha)
         picked = self._solution_branches(alpha, rtol)
         self.form([b.index for b in picked])
         out = []
@@ -657,6 +657,8 @@ class SolutionPath:
     def max_multiplicity(self, samples: int = 0):
         """(max multiplicity, an alpha where it occurs), checked at the midpoints between all branch
         ends (and at ``samples`` evenly spaced alphas)."""
+        if not (isinstance(samples, (int, np.integer)) and not isinstance(samples, bool) and samples >= 0):
+            raise InputError(f"samples must be an integer >= 0, got {samples!r}")
         scan, extents = self._multiplicity_scan()
         best = (0, float("nan"))
         for a, b, k in scan:
@@ -671,7 +673,8 @@ class SolutionPath:
         return best
 
     def component(self, spec) -> np.ndarray:
-        """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof) or an index of y."""
+        """Values of one component at every point: ("lam_n", i), ("lam_t", i), ("u", dof), "lam_n:i" or an
+        index of y."""
         idx = self.component_index(spec)
         if idx >= self.n:  # a multiplier: no displacement needed
             return self.lams[:, idx - self.n]
@@ -709,6 +712,11 @@ class SolutionPath:
         path = os.fspath(path)
         if not path.strip():
             raise InputError("save needs a folder name, got an empty path")
+        probe = os.path.dirname(os.path.abspath(path))
+        while not os.path.exists(probe) and os.path.dirname(probe) != probe:
+            probe = os.path.dirname(probe)
+        if not os.path.isdir(probe):
+            raise InputError(f"cannot save to {path!r}: {probe!r} is a file, not a folder")
         if os.path.lexists(path) and not _replaceable(path, self.FORMAT):
             raise InputError(f"refusing to replace {path!r}: it is not a saved cfcontact path (a folder with path.json) "
                              "nor an empty folder; choose another folder")
@@ -1045,13 +1053,31 @@ def _same_point(a, b, n, rtol) -> bool:
                                                              np.abs(z).max(initial=0.0), 1e-300))
 
 
+def _alpha_value(alpha) -> float:
+    """``alpha`` as a float (InputError for what is not one number)."""
+    try:
+        return float(alpha)
+    except (TypeError, ValueError):
+        raise InputError(f"alpha must be a number, got {alpha!r}") from None
+
+
 def component_index(n: int, m: int, spec) -> int:
     """Index in y = (u, lam_n, lam_t) (n DOFs, m contact nodes) of ("lam_n", i), ("lam_t", i),
-    ("u", dof) or an index of y; InputError when out of range."""
-    if isinstance(spec, (int, np.integer)):
+    ("u", dof), "lam_n:i" (the form of case files and the command line) or an index of y;
+    InputError when out of range or of another form."""
+    if isinstance(spec, str) and ":" in spec:
+        name, _, i = spec.partition(":")
+        try:
+            spec = (name.strip(), int(i))
+        except ValueError:
+            raise InputError(f"component {spec!r}: expected 'NAME:INDEX' with an integer index") from None
+    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
         idx = int(spec)
         limit = n + 2 * m
     else:
+        if not (isinstance(spec, (tuple, list)) and len(spec) == 2 and isinstance(spec[1], (int, np.integer))):
+            raise InputError(f"component must be ('lam_n', i), ('lam_t', i), ('u', dof), 'lam_n:i' or an index of y, "
+                             f"got {spec!r}")
         name, i = spec
         offsets = {"u": (0, n), "lam_n": (n, m), "lam_t": (n + m, m)}
         if name not in offsets:

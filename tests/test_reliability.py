@@ -226,6 +226,43 @@ def test_bad_numbers_in_the_api():
     assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
 
 
+def test_bad_arguments_of_paths_and_plots_are_input_errors(tmp_path):
+    """Arguments of the wrong kind are InputErrors naming the argument, not TypeErrors from inside."""
+    import cfcontact
+    from cfcontact import exact, plotting
+
+    K = [[2.0, -1.0], [-1.0, 2.0]]
+    system = _system(K)
+    for kwargs, words in (({"h_min": "x"}, "h_min must be a finite number"), ({"max_steps": 2.5}, "max_steps must be "
+                          "an integer"), ({"tree": "yes"}, "tree must be true or false"),
+                          ({"callback": 5}, "callback must be a function"), ({"monitor": "x"}, "monitor must be")):
+        with pytest.raises(InputError, match=words):
+            cfcontact.trace_path(system, method="exact", **kwargs)
+    with pytest.raises(InputError, match="method must be 'exact'"):
+        exact.trace_tree(system, method="seed")
+    path = cfcontact.trace_path(system, method="exact")
+    assert path.component("lam_n:0").tolist() == path.component(("lam_n", 0)).tolist()
+    for bad in ("lam_n:x", ("lam_n", 0, 1), None):
+        with pytest.raises(InputError, match="component"):
+            path.component(bad)
+    with pytest.raises(InputError, match="alpha must be a number"):
+        path.solutions_at(None)
+    with pytest.raises(InputError, match="samples must be an integer >= 0"):
+        path.max_multiplicity(samples=-1)
+    with pytest.raises(InputError, match="must be a SolutionPath"):
+        plotting.plot_path(None)
+    with pytest.raises(InputError, match="figsize"):
+        plotting.plot_path(path, figsize=(-1, 2))
+    fig = plotting.plot_path(path)
+    with pytest.raises(InputError, match="must be a matplotlib Figure"):
+        plotting.save_figure(None, str(tmp_path / "a.png"))
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(InputError, match="no folder"):
+        plotting.save_figure(fig, str(tmp_path / "afile" / "a.png"))
+    with pytest.raises(InputError, match="is a file, not a folder"):
+        path.save(str(tmp_path / "afile" / "p"))
+
+
 # ------------------------------------------------------------------ corrupted saved paths and checkpoints
 @pytest.fixture(scope="module")
 def stopped(tmp_path_factory):
