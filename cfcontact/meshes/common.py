@@ -48,8 +48,15 @@ def check_count(name, value, minimum=1):
     return value
 
 
+#: The largest length a geometry takes (1000 km in metres): beyond, gmsh's tolerances and the
+#: stiffness's scale break down (a length of 1e300 made gmsh ask on stdin and PETSc crash).
+LENGTH_MAX = 1e6
+#: The largest ratio of two lengths of one body (cells of aspect ratio 1e12 make K singular to rounding).
+ASPECT_MAX = 1e6
+
+
 def check_length(name, value):
-    """A finite positive number (booleans refused), else InputError naming ``name``."""
+    """A finite positive number up to LENGTH_MAX (booleans refused), else InputError naming ``name``."""
     try:
         if isinstance(value, bool):
             raise TypeError
@@ -58,7 +65,18 @@ def check_length(name, value):
         raise InputError(f"{name} must be a positive number, got {value!r}") from None
     if not (math.isfinite(value) and value > 0):
         raise InputError(f"{name} must be a positive number, got {value!r}")
+    if value > LENGTH_MAX:
+        raise InputError(f"{name} = {value!r} is beyond {LENGTH_MAX:g} (lengths are in the units of E's, e.g. "
+                         "metres with Pa); rescale the model")
     return value
+
+
+def check_aspect(**lengths):
+    """InputError when two of the lengths of one body differ by more than ASPECT_MAX."""
+    (a, va), (b, vb) = max(lengths.items(), key=lambda kv: kv[1]), min(lengths.items(), key=lambda kv: kv[1])
+    if va > ASPECT_MAX * vb:
+        raise InputError(f"{a} = {va:g} and {b} = {vb:g} differ by more than {ASPECT_MAX:g} times: the stiffness would "
+                         "be singular to rounding; model the thin body otherwise (or rescale)")
 
 
 def check_angle(name, value):

@@ -58,6 +58,8 @@ def check_parameters(nx=30, ny=10, length=3.0, height=1.0, cell="quadrilateral",
     length = common.check_length("length", length)
     height = common.check_length("height", height)
     height2 = height if height2 is None else common.check_length("height2", height2)
+    common.check_aspect(length=length, height=height)
+    common.check_aspect(length=length, height2=height2)
     cell = common.check_cell(cell)
     angle = common.check_angle("angle", angle)
     return dict(nx=nx, ny=ny, length=length, height=height, cell=cell, angle=angle,
