@@ -542,6 +542,7 @@ def validate_case(raw: dict, base_dir: str = ".") -> dict:
     case["contact"] = _validate_contact(raw.get("contact", {}), geometry, groups)
     case["loads"] = _validate_loads(raw.get("loads", {}), geometry, material, groups)
     case["path"], case["_request"] = _validate_path(raw.get("path", {}))
+    case["_warnings"] = _unused_path_keys(raw.get("path", {}), case["path"])
     _validate_friction_parameter(case["path"], case["contact"])
     output = _check_section("output", raw.get("output", {}), SCHEMA["output"])
     if output["animation_format"] not in ("gif", "mp4", "frames"):
@@ -750,6 +751,19 @@ def _validate_path(table):
     return path, (options, span)
 
 
+def _unused_path_keys(raw, path) -> list:
+    """Warnings for [path] keys the case gives but its method or parameter does not use."""
+    notes = []
+    for f in fields(PathOptions):
+        if f.name in raw and path["method"] not in f.metadata["methods"]:
+            notes.append(f"[path] {f.name}: used by the {' and '.join(f.metadata['methods'])} method only; ignored "
+                         f"with method = {path['method']!r}")
+    if path.get("parameter") != "friction":
+        notes += [f'[path] {k}: used with parameter = "friction" only; ignored' for k in ("friction_start", "friction_end")
+                  if k in raw]
+    return notes
+
+
 def _validate_friction_parameter(path, contact):
     """[path] parameter: "alpha" or "friction"; for "friction" the range (filled in) and the backend."""
     if path["parameter"] not in PARAMETERS:
@@ -814,6 +828,8 @@ def load_case(filename) -> dict:
     filename = os.fspath(filename)
     if os.path.isdir(filename):
         raise CaseError(f"{filename!r} is a folder, not a case file (give the .toml file)")
+    if os.path.exists(filename) and not os.path.isfile(filename):
+        raise CaseError(f"{filename!r} is not a regular file (a case file is a TOML text file)")
     if not os.path.isfile(filename):
         raise CaseError(f"no such case file: {filename!r}")
     try:
@@ -822,14 +838,14 @@ def load_case(filename) -> dict:
     except OSError as exc:
         raise CaseError(f"cannot read the case file {filename!r}: {exc.strerror}") from None
     try:
-        raw = tomllib.loads(data.decode("utf-8"))
+        raw = tomllib.loads(data.decode("utf-8-sig"))
     except UnicodeDecodeError as exc:
         raise CaseError(f"{filename}: not UTF-8 text ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(f"{filename}: invalid TOML: {exc}") from None
     case = validate_case(raw, os.path.dirname(os.path.abspath(filename)))
     case["_file"] = os.path.abspath(filename)
-    case["_text"] = data.decode("utf-8")
+    case["_text"] = data.decode("utf-8-sig")
     return case
 
 

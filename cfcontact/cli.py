@@ -115,6 +115,9 @@ def _logging(level):
         logger.propagate = old_prop
 
 
+#: The most frames of a rendered animation (each is one off-screen render)
+MAX_FRAMES = 10000
+
 #: The largest friction coefficient of a friction map's range (Coulomb coefficients of real
 #: materials are below 10; F = 30 already sticks every node of the seed's models)
 MAX_FRICTION = 1e6
@@ -264,6 +267,8 @@ def cmd_run(args):
                            stop_after_transitions=args.stop_after_transitions, stop_at_alpha=args.stop_at_alpha,
                            checkpoint_every=args.checkpoint_every)
     check_size(case, allow_large=args.allow_large)
+    for text in case.get("_warnings", ()):
+        _warn(args, text)
     with CaseRun(case, args.output, force=args.force, resume=args.resume, warn=lambda text: _warn(args, text)) as run:
         return _run_case(args, case, run, stops, t_start)
 
@@ -382,7 +387,13 @@ def cmd_plot(args):
 
 def _animation_target(args):
     """Check (and prepare the folder of) ``--animation``: a .gif/.mp4 file or a folder of frames."""
-    if os.path.splitext(args.animation)[1].lower() in (".gif", ".mp4"):
+    ext = os.path.splitext(args.animation)[1].lower()
+    if ext and ext not in (".gif", ".mp4"):
+        raise CaseError(f"--animation: {ext!r} is not a format cfcontact writes; give a .gif or .mp4 file, or a "
+                        "folder name without extension (PNG frames)")
+    if args.frames > MAX_FRAMES:
+        raise CaseError(f"--frames: at most {MAX_FRAMES}, got {args.frames}")
+    if ext:
         output_file(args.animation, "--animation")
     else:
         output_folder(os.path.dirname(os.path.abspath(args.animation)), "--animation", args.animation)
@@ -411,6 +422,8 @@ def cmd_render(args):
     src, path = _load_saved(args.saved)
     if path.geometry is None:
         raise CaseError(f"{src!r} has no geometry (a lumped model): nothing to render")
+    if args.magnification is None:
+        args.magnification = _saved_magnification(src)
     from cfcontact import render
 
     ws = tuple(args.window_size) if args.window_size else None
@@ -425,6 +438,8 @@ def cmd_render(args):
         k, alpha = path.max_multiplicity()
         if not k:
             raise CaseError("the path covers no alpha interval; give --alpha")
+        if k == 1:  # one solution everywhere: the farthest point the path reached (its end)
+            alpha = float(path.alphas[-1])
     else:
         alpha = args.alpha
     sols = path.solutions_at(alpha)
@@ -471,6 +486,21 @@ def cmd_export(args):
     fn, what = fields.export_path(path, out, alpha=args.alpha, points=args.points, material=material)
     _say(args, f"wrote {fn} ({what})")
     return EXIT_OK
+
+
+def _saved_magnification(src):
+    """[output] magnification of the case a saved run was run from (its case.toml beside path/),
+    or None (not given, a path saved by the library, or unreadable): ``render``'s default, as
+    the run's own pictures had it."""
+    toml = os.path.join(os.path.dirname(os.path.abspath(src)), "case.toml")
+    try:
+        import tomllib
+
+        with open(toml, "rb") as fh:
+            value = tomllib.load(fh).get("output", {}).get("magnification")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else None
 
 
 def _saved_contact_settings(src):
@@ -601,11 +631,13 @@ def _setup_render(sub, common):
     p = sub.add_parser("render", parents=[common], help="render deformed configurations of a saved path")
     p.add_argument("saved", metavar="SAVED_PATH_DIR")
     p.add_argument("--alpha", type=_finite, metavar="A",
-                   help="render the solutions at alpha A (default: the alpha of largest multiplicity)")
+                   help="render the solutions at alpha A (default: the alpha of largest multiplicity; the "
+                        "path's last point where it has one solution everywhere)")
     p.add_argument("--panel", action="store_true", help="panel layout even for a single solution")
     p.add_argument("--animation", metavar="FILE", help="animation along the path: FILE.gif, FILE.mp4 or a folder")
     p.add_argument("--frames", type=_count, default=60, help="animation frames (default 60)")
-    p.add_argument("--magnification", type=_positive, help="displacement scale (default: automatic)")
+    p.add_argument("--magnification", type=_positive,
+                   help="displacement scale (default: the run's [output] magnification, else automatic)")
     p.add_argument("--window-size", nargs=2, type=_pixels, metavar=("W", "H"), help="picture size in pixels")
     p.add_argument("--stress", action="store_true", help="colour the cells by the von Mises stress")
     p.add_argument("-o", "--output", metavar="FILE.png", help="picture file (default render.png)")

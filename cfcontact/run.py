@@ -490,9 +490,10 @@ def _write_pictures(path, case, outdir, warn) -> list:
 
 
 def panel_solutions(path):
-    """The solutions at the alpha of largest multiplicity (else the last path point)."""
+    """The solutions at the alpha of largest multiplicity, where it is above one (else the last
+    path point: the farthest the path reached)."""
     k, a = path.max_multiplicity()
-    sols = path.solutions_at(a) if k else []
+    sols = path.solutions_at(a) if k > 1 else []
     if not sols and len(path.alphas):
         from cfcontact.ssnm import Solution
 

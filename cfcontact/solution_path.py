@@ -724,6 +724,7 @@ class SolutionPath:
         os.makedirs(parent, exist_ok=True)
         tmp = tempfile.mkdtemp(prefix=".cfpath-", dir=parent)
         try:
+            os.chmod(tmp, 0o777 & ~_umask())  # (mkdtemp makes it 0700; a saved path is an ordinary folder)
             meta = {"format": self.FORMAT, "version": FORMAT_VERSION, "n": self.n, "m": self.m,
                     "rho": self.rho, "method": self.method, "alpha_start": self.alpha_start,
                     "alpha_end": self.alpha_end, "options": self.options, "status": self.status,
@@ -807,6 +808,13 @@ class SolutionPath:
 
 
 # ------------------------------------------------------------ checks of saved files
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it and back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def _replaceable(path, fmt) -> bool:
     """May :meth:`SolutionPath.save` replace ``path``: an empty folder, or a folder whose path.json
     says it is a saved path of format ``fmt`` (not the working directory itself)?"""

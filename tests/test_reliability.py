@@ -193,6 +193,50 @@ def test_outputs_that_cannot_be_written_exit_2(tmp_path, capsys, stopped):
     assert SolutionPath.load(str(tmp_path / "p")).alphas.tolist() == path.alphas.tolist()
 
 
+def test_case_file_forms_and_settings_that_do_nothing(tmp_path, capsys):
+    """A case file with a UTF-8 byte-order mark reads as without; a device is not a case file;
+    [path] keys the method or parameter does not use are named in a warning, not ignored silently."""
+    from cfcontact import case as case_file
+
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + GEO.encode())
+    assert case_file.load_case(str(bom))["geometry"]["nx"] == 4
+    with pytest.raises(case_file.CaseError, match="is not a regular file"):
+        case_file.load_case("/dev/null")
+    case = case_file.load_case(_write(tmp_path, GEO + "[path]\ntree = true\nh_min = 1e-6\nmethod = \"exact\"\n"
+                                                         "friction_end = 2.0\n"))
+    assert case["_warnings"] == ["[path] h_min: used by the seed method only; ignored with method = 'exact'",
+                                 '[path] friction_end: used with parameter = "friction" only; ignored']
+
+
+def test_render_defaults_and_animation_targets(tmp_path, capsys, stopped):
+    """render without --alpha on a path with one solution everywhere shows its last point (not the
+    middle of its first interval); --animation takes .gif, .mp4 or a folder, and at most 10000
+    frames; a saved path folder is an ordinary folder (not mkdtemp's 0700); the magnification of a
+    run's case is render's default."""
+    done = stopped[2]
+    path = SolutionPath.load(os.path.join(done, "path"))
+    assert path.max_multiplicity()[0] == 1
+    out = str(tmp_path / "r.png")
+    assert cli.main(["render", done, "-o", out, "--window-size", "160", "120"]) == 0
+    assert f"at alpha = {path.alphas[-1]:.10g})" in capsys.readouterr().out
+    for flags, words in ((["--animation", str(tmp_path / "a.avi")], "'.avi' is not a format"),
+                         (["--animation", str(tmp_path / "a.gif"), "--frames", "20000"], "--frames: at most 10000")):
+        assert cli.main(["render", done, *flags]) == 2
+        assert words in capsys.readouterr().err
+    assert os.stat(os.path.join(done, "path")).st_mode & 0o777 == 0o777 & ~_umask()
+    assert cli._saved_magnification(os.path.join(done, "path")) is None  # (TINY gives none)
+    (tmp_path / "run" / "path").mkdir(parents=True)
+    (tmp_path / "run" / "case.toml").write_text(GEO + "[output]\nmagnification = 1\n")
+    assert cli._saved_magnification(str(tmp_path / "run" / "path")) == 1.0
+
+
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 # ------------------------------------------------------------------ numbers (the API)
 def _system(K, f1=(-1.0, 0.0), f2=(1.0, 1.0), friction=0.3):
     from cfcontact.system import ContactSystem
