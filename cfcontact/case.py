@@ -343,13 +343,13 @@ def _dirichlet(value, where):
         if unknown:
             raise CaseError(f"{here}: unknown component {unknown[0]!r}; valid: x, y")
         out[tag] = {}
-        for comp, v in comps.items():
-            if _is_number(v):
-                v = [v, v]
-            if not (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)) \
-                    or not all(math.isfinite(x) for x in v):
+        for comp, given in comps.items():
+            v = [given, given] if _is_number(given) else given
+            if not (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)):
                 raise CaseError(f"{here}.{comp}: expected a number or [value at alpha = 0, value at alpha = 1], "
-                                f"got {_tname(v)} {v!r}")
+                                f"got {_tname(given)} {given!r}")
+            if not all(math.isfinite(x) for x in v):
+                raise CaseError(f"{here}.{comp}: values must be finite, got {given!r}")
             out[tag][comp] = [float(x) for x in v]
     return out
 
@@ -658,8 +658,8 @@ def _validate_contact(table, geometry, groups):
     checked against the model: a slave must be one of its contact boundaries, an obstacle needs a
     model without body 2, segment pairing needs a master."""
     contact = _check_section("contact", table, SCHEMA["contact"])
-    if "rho" in contact and not contact["rho"] > 0:
-        raise CaseError(f"[contact] rho: must be > 0, got {contact['rho']!r}")
+    if "rho" in contact and not 0 < contact["rho"] <= 1e100:
+        raise CaseError(f"[contact] rho: must be > 0 and at most 1e+100, got {contact['rho']!r}")
     if "pairing" in contact and contact["pairing"] not in PAIRINGS:
         raise CaseError(f"[contact] pairing: expected {' or '.join(map(json.dumps, PAIRINGS))}, "
                         f"got {contact['pairing']!r}")
@@ -735,6 +735,10 @@ def _validate_path(table):
     path = _check_section("path", table, SCHEMA["path"])
     if path["method"] not in METHODS:
         raise CaseError(f"[path] method: unknown method {path['method']!r}; valid: {', '.join(map(repr, METHODS))}")
+    if path.get("tol") is not None and not path["tol"] > 0:
+        raise CaseError(f"[path] tol: must be > 0, got {path['tol']!r}")
+    if path.get("max_iter") is not None and not path["max_iter"] >= 1:
+        raise CaseError(f"[path] max_iter: must be >= 1, got {path['max_iter']!r}")
     if path["backend"] not in BACKENDS:
         raise CaseError(f"[path] backend: unknown backend {path['backend']!r}; valid: {', '.join(map(repr, BACKENDS))}")
     try:
@@ -775,6 +779,9 @@ def _validate_friction_parameter(path, contact):
     path.setdefault("friction_start", 0.0)
     path.setdefault("friction_end", float(max(fr) if isinstance(fr, list) else fr))
     F0, F1 = path["friction_start"], path["friction_end"]
+    if F0 == F1 == 0.0 and not fr:
+        raise CaseError('[path] parameter = "friction": the path runs from friction_start to friction_end (default '
+                        "[contact] friction, here 0); give friction_end > 0")
     if min(F0, F1) < 0 or F0 == F1:
         raise CaseError(f"[path] friction_start, friction_end: need two different values >= 0, got {F0}, {F1}")
     if path["backend"] == "full":

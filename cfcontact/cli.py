@@ -266,6 +266,13 @@ def cmd_run(args):
     stops = StopConditions(time_limit=args.time_limit, stop_after_folds=args.stop_after_folds,
                            stop_after_transitions=args.stop_after_transitions, stop_at_alpha=args.stop_at_alpha,
                            checkpoint_every=args.checkpoint_every)
+    if args.stop_at_alpha is not None:
+        p = case["path"]
+        friction = p.get("parameter") == "friction"
+        a0, a1 = (p["friction_start"], p["friction_end"]) if friction else (p["alpha_start"], p["alpha_end"])
+        if not (min(a0, a1) <= args.stop_at_alpha <= max(a0, a1)) or args.stop_at_alpha == a0:
+            raise CaseError(f"--stop-at-alpha {args.stop_at_alpha:g}: the path runs from {'F' if friction else 'alpha'} "
+                            f"= {a0:g} to {a1:g}; give a value after its start, within that range")
     check_size(case, allow_large=args.allow_large)
     for text in case.get("_warnings", ()):
         _warn(args, text)
