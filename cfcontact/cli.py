@@ -392,6 +392,11 @@ def cmd_plot(args):
     return EXIT_OK
 
 
+def _par(path) -> str:
+    """The name of a path's parameter in messages: "alpha", or "F" for a path over the friction."""
+    return "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"
+
+
 def _animation_target(args):
     """Check (and prepare the folder of) ``--animation``: a .gif/.mp4 file or a folder of frames."""
     ext = os.path.splitext(args.animation)[1].lower()
@@ -452,7 +457,8 @@ def cmd_render(args):
     sols = path.solutions_at(alpha)
     if not sols:
         lo, hi = float(path.alphas.min()), float(path.alphas.max())
-        raise CaseError(f"--alpha {alpha}: the path has no solution there; it covers alpha in [{lo:.10g}, {hi:.10g}]")
+        raise CaseError(f"--alpha {alpha}: the path has no solution there; it covers {_par(path)} in [{lo:.10g}, "
+                        f"{hi:.10g}]")
     out = args.output or "render.png"
     if os.path.splitext(out)[1].lower() != ".png":
         raise CaseError(f"-o: renders are PNG files, got {out!r}")
@@ -469,7 +475,7 @@ def cmd_render(args):
     else:
         render.render_solution(path.geometry, sols[0], out, magnification=args.magnification,
                                window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0])
-    _say(args, f"wrote {out} ({len(sols)} solution(s) at alpha = {alpha:.10g})")
+    _say(args, f"wrote {out} ({len(sols)} solution(s) at {_par(path)} = {alpha:.10g})")
     if args.animation:
         _render_animation(args, path, ws, src)
     return EXIT_OK

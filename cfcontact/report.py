@@ -216,7 +216,9 @@ def unverified_text(alphas) -> str:
 
 def format_report(rep, source) -> str:
     """The text of ``cfcontact info``: a :func:`path_report` of the saved path ``source``."""
-    par = "F (friction)" if rep.get("parameter") == "friction" else "alpha"
+    friction = rep.get("parameter") == "friction"
+    par = "F (friction)" if friction else "alpha"
+    x = "F" if friction else "alpha"  # the path's parameter in the lines below
     lines = [f"saved path: {source}",
              f"method {rep['method']}, status {rep['status']}, n = {rep['n']} DOFs, m = {rep['m']} contact nodes, "
              f"{par} {rep['alpha_start']:g} -> {rep['alpha_end']:g}",
@@ -225,7 +227,7 @@ def format_report(rep, source) -> str:
     if rep.get("system_checksum"):
         lines.append(f"system checksum {rep['system_checksum']} (SHA-256 of n, m, K, N, T, f1, f2, friction, gap, rho)")
     if rep["alpha_of_max"] is not None:
-        lines.append(f"max multiplicity {rep['max_multiplicity']} (at alpha = {rep['alpha_of_max']:.10g})")
+        lines.append(f"max multiplicity {rep['max_multiplicity']} (at {x} = {rep['alpha_of_max']:.10g})")
     unverified = unverified_alphas(rep.get("events", []))
     if rep.get("turned_back"):
         lines.append(turned_back_text(rep["reach"], rep["alpha_start"], rep.get("parameter", "alpha"),
@@ -235,22 +237,22 @@ def format_report(rep, source) -> str:
     lines.append("")
     if rep["transitions"]:
         lines.append("transitions:")
-        lines.append(f"  {'#':>4}  {'kind':<11}  {'alpha':>16}  {'node':>5}  {'set':<4}  branches")
+        lines.append(f"  {'#':>4}  {'kind':<11}  {x:>16}  {'node':>5}  {'set':<4}  branches")
         for t in rep["transitions"]:
             lines.append(f"  {t['index']:>4}  {t['kind']:<11}  {t['alpha']:>16.10g}  {t['node']:>5}  "
                          f"{str(t['set']):<4}  {t['from_branch']} -> {t['to_branch']}")
     else:
         lines.append("transitions: none")
-    lines.append("folds: " + (", ".join(f"alpha = {a:.10g}" for a in rep["folds"]) if rep["folds"] else "none"))
-    lines.append("multiplicity over alpha:")
+    lines.append("folds: " + (", ".join(f"{x} = {a:.10g}" for a in rep["folds"]) if rep["folds"] else "none"))
+    lines.append(f"multiplicity over {x}:")
     for iv in rep["multiplicity"]:
         lines.append(f"  [{iv['alpha_lo']:.10g}, {iv['alpha_hi']:.10g}]  {iv['solutions']} solution(s)")
     if not rep["multiplicity"]:
-        lines.append("  (the path covers no alpha interval)")
+        lines.append(f"  (the path covers no {x} interval)")
     if rep["events"]:
         lines.append("events:")
         for e in rep["events"]:
-            lines.append(f"  {e['kind']} at alpha = {e['alpha']}: {e['message']}")
+            lines.append(f"  {e['kind']} at {x} = {e['alpha']}: {e['message']}")
     else:
         lines.append("events: none")
     st = rep["stats"] or {}
