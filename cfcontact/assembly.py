@@ -486,6 +486,25 @@ def _parse_tractions(tractions, groups, what):
     return out
 
 
+def _check_windows(fem, trac, groups, what):
+    """InputError for a traction window that misses its boundary piece (it would load nothing)."""
+    for tag, window in trac:
+        if window is None:
+            continue
+        facets = fem.facet_tag_nodes(tag)
+        if not len(facets):
+            continue
+        pts = fem.points[np.unique(facets)]
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        x0, x1, y0, y1 = window
+        if x1 < lo[0] or x0 > hi[0] or y1 < lo[1] or y0 > hi[1]:
+            box = ", ".join(f"{a} in [{l:.6g}, {h:.6g}]" for a, l, h, on in (("x", x0, x1, np.isfinite([x0, x1]).any()),
+                                                                           ("y", y0, y1, np.isfinite([y0, y1]).any()))
+                            if on)
+            raise InputError(f"{what}[{_tag_label(groups, 1, tag)!r}]: the window {box} misses the piece, which spans "
+                             f"x in [{lo[0]:.6g}, {hi[0]:.6g}], y in [{lo[1]:.6g}, {hi[1]:.6g}]: it would load nothing")
+
+
 def _tractions_meta(trac, label):
     """{label: [tx, ty]} for uniform tractions; a list of {"value", "x", "y"} items for a tag with windows."""
     out = {}
@@ -629,6 +648,8 @@ def assemble_contact_system(
     clamp_tags = [_resolve_tag(c, groups, 1, "clamp") for c in (clamp or ())]
     dir_items = _parse_dirichlet(dirichlet, groups)
     trac = [_parse_tractions(tractions1, groups, "tractions1"), _parse_tractions(tractions2, groups, "tractions2")]
+    for k, t in enumerate(trac):
+        _check_windows(fem, t, groups, f"tractions{k + 1}")
     bforce = [_parse_body_force(body_force1, groups, "body_force1"), _parse_body_force(body_force2, groups, "body_force2")]
 
     # ------------------------------------------------------ Dirichlet / bodies

@@ -1083,6 +1083,9 @@ def _case_message(message, contact) -> str:
         return "[contact] pairing: " + first.replace(" (pairing='segment')", ' (pairing = "segment" in [contact])')
     if message.startswith("friction must be"):
         return f"[contact] friction: {first}"
+    for k in (1, 2):
+        if message.startswith(f"tractions{k}["):
+            return f"[loads.f{k}] {first[len(f'tractions{k}'):]}"
     if "obstacle" in contact and "obstacle" in message:
         return f"[contact.obstacle]: {first}"
     if message.startswith(("non-zero prescribed displacement", "dirichlet")) or "prescribed x displacements" in \

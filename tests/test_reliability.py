@@ -89,6 +89,8 @@ BAD_RUNS = [
     ("traction 1e308", GEO + "[loads.f1]\ntop1 = [1e308, -1e308]\n", [], ["f1", "overflow", "rescale"]),
     ("stop-at-alpha nan", GEO, ["--stop-at-alpha", "nan"], ["--stop-at-alpha", "finite", "nan"]),
     ("stop-at-alpha inf", GEO, ["--stop-at-alpha", "inf"], ["--stop-at-alpha", "inf"]),
+    ("traction window off its piece", GEO + "[loads.f1]\ntop1 = [{value = [1e7, -1e7], x = [5.0, 6.0]}]\n", [],
+     ["[loads.f1] ['top1=12']", "x in [5, 6] misses the piece", "x in [0, 3]"]),
     ("dirichlet nan", GEO + "[loads.dirichlet]\ntop1 = {y = nan}\n", [], ["[loads.dirichlet] top1.y", "finite", "nan"]),
     ("rho 1e200", GEO + "[contact]\nrho = 1e200\n", [], ["[contact] rho", "1e+100"]),
     ("tol negative", GEO + "[path]\ntol = -1.0\n", [], ["[path] tol", "> 0"]),
