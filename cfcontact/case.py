@@ -765,6 +765,9 @@ def _unused_path_keys(raw, path) -> list:
     if path.get("parameter") != "friction":
         notes += [f'[path] {k}: used with parameter = "friction" only; ignored' for k in ("friction_start", "friction_end")
                   if k in raw]
+    else:
+        notes += [f'[path] {k}: used by paths over alpha only; ignored with parameter = "friction"'
+                  for k in ("alpha_min", "alpha_max", "tree") if k in raw]
     return notes
 
 

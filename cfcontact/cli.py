@@ -471,10 +471,11 @@ def cmd_render(args):
         stresses = [fields.von_mises(path.geometry, s, material) for s in sols]
     if len(sols) > 1 or args.panel:
         render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws,
-                            stresses=stresses)
+                            stresses=stresses, parameter=_par(path))
     else:
         render.render_solution(path.geometry, sols[0], out, magnification=args.magnification,
-                               window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0])
+                               window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0],
+                               parameter=_par(path))
     _say(args, f"wrote {out} ({len(sols)} solution(s) at {_par(path)} = {alpha:.10g})")
     if args.animation:
         _render_animation(args, path, ws, src)
@@ -723,6 +724,10 @@ def cmd_map(args):
                    args.frictions, args.alphas, args.mark, curves=not args.no_curves, force=args.force)
     _default_sigpipe()
     crit = res["critical"]
+    if res["untraced"]:
+        shown = ", ".join(f"F = {F:.10g} ({st})" for F, st in res["untraced"][:5])
+        _warn(args, f"{len(res['untraced'])} row(s) of the map could not be traced to the end of the alpha range and "
+                    f"are marked -1 (unknown): {shown}" + (", ..." if len(res["untraced"]) > 5 else ""))
     _say(args, f"cfcontact: critical friction of the path: {crit if crit is not None else '(no curves computed)'}")
     _say(args, f"cfcontact: up to {res['max_solutions']} solutions, {res['curves']} fold curve(s), {res['cusps']} "
                f"cusp(s); wrote {res['output']}/ ({', '.join(res['files'])})")

@@ -385,10 +385,11 @@ def _path_solutions(path, alpha=None, points=False):
                 y = np.asarray(y, dtype=float)
                 yield Solution(y[:n], y[n:n + m], y[n + m:], float(a), path.branches[branches[i]].sets, 0)
         return gen(), f"{P} path points"
+    par = "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"
     if alpha is None:
         k, alpha = path.max_multiplicity()
         if not k:
-            raise InputError("the path covers no alpha interval; give an alpha")
+            raise InputError(f"the path covers no {par} interval; give an alpha")
     try:
         alpha = float(alpha)
     except (TypeError, ValueError):
@@ -396,9 +397,9 @@ def _path_solutions(path, alpha=None, points=False):
     sols = path.solutions_at(alpha) if np.isfinite(alpha) else []
     if not sols:
         lo, hi = (float(np.min(path.alphas)), float(np.max(path.alphas))) if len(path.alphas) else (np.nan, np.nan)
-        raise InputError(f"alpha {alpha:.10g}: the path has no solution there; it covers alpha in "
+        raise InputError(f"{par} {alpha:.10g}: the path has no solution there; it covers {par} in "
                          f"[{lo:.10g}, {hi:.10g}]")
-    return sols, f"{len(sols)} solution(s) at alpha = {alpha:.10g}"
+    return sols, f"{len(sols)} solution(s) at {par} = {alpha:.10g}"
 
 
 def export_path(path, filename, alpha=None, points: bool = False, material=None):

@@ -92,6 +92,16 @@ def _system_at(system, F, phi):
     return system.with_friction(float(F) * phi if np.any(phi != phi[0]) else float(F) * float(phi[0]))
 
 
+def _check_alpha_range(alpha_range):
+    """InputError unless ``alpha_range`` is (alpha_start, alpha_end), two different finite numbers."""
+    try:
+        a0, a1 = (float(a) for a in alpha_range)
+    except (TypeError, ValueError):
+        raise InputError(f"alpha_range must be (alpha_start, alpha_end), got {alpha_range!r}") from None
+    if not (math.isfinite(a0) and math.isfinite(a1) and a0 != a1):
+        raise InputError(f"alpha_range must be two different finite numbers (start, end), got ({a0}, {a1})")
+
+
 def _check_range(name, lo, hi):
     lo, hi = float(lo), float(hi)
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -234,6 +244,8 @@ def multiplicity_map(system, alphas, frictions, alpha_start: float = 0.0, alpha_
             continue
         t1 = time.perf_counter()
         iv, counts[i] = _count(path, alphas)
+        if path.status != "completed":  # (stuck or cycling: what lies beyond where it stopped is unknown)
+            counts[i] = -1
         t_count += time.perf_counter() - t1
         t_trace += t1 - t0
         res.intervals.append(iv)
@@ -561,6 +573,7 @@ def critical_friction_path(system, alpha_range=(0.0, 1.0), F_max: float = 100.0,
     F_min, F_max = _check_range("the friction range", F_min, F_max)
     if F_min < 0:
         raise InputError(f"friction coefficients are >= 0, got F_min = {F_min}")
+    _check_alpha_range(alpha_range)
     t0 = time.perf_counter()
     sw = _Sweep(system, alpha_range[0], alpha_range[1], solver, options, F_max, start)
     intervals = sw.sweep(F_min, F_max, stop_at_fold=True)
@@ -737,6 +750,7 @@ def fold_curves(system, F_range=(0.0, 30.0), alpha_range=(0.0, 1.0), frictions=N
     F_lo, F_hi = _check_range("the friction range", *F_range)
     if F_lo < 0:
         raise InputError(f"friction coefficients are >= 0, got {F_lo}")
+    _check_alpha_range(alpha_range)
     t0 = time.perf_counter()
     sw = _Sweep(system, alpha_range[0], alpha_range[1], solver, options, F_hi, start)
     intervals = sw.sweep(F_lo, F_hi)

@@ -86,6 +86,7 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
     return {"output": out, "files": files, "critical": crit, "map_timings": fmap.timings,
             "curve_timings": fc.timings if fc is not None else None,
             "curves": len(fc.curves) if fc is not None else 0, "cusps": len(fc.cusps) if fc is not None else 0,
+            "untraced": [(float(F), st) for F, st in zip(fmap.frictions, fmap.status) if st != "completed"],
             "max_solutions": max([int(fmap.counts.max(initial=0))] + [c for iv in fmap.intervals for _, _, c in iv])}
 
 

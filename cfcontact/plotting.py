@@ -18,6 +18,7 @@ module works headless and inside other applications.  Write a figure with
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Optional
 
 import numpy as np
@@ -218,7 +219,7 @@ def plot_path(path, component=None, ax=None, zoom=None, mark_folds: bool = True,
             zax.tick_params(labelsize="x-small")
         else:
             zax.set_xlabel(xlabel)
-            zax.set_title(f"zoom: {limits[0]:.4g} ≤ α ≤ {limits[1]:.4g}", fontsize="medium")
+            zax.set_title(f"zoom: {limits[0]:.4g} ≤ {xlabel} ≤ {limits[1]:.4g}", fontsize="medium")
             zax.grid(True, alpha=0.3)
         _draw_path(zax, alphas, values, fa, fv, ta, tv, mark_folds, mark_transitions, linewidth, markersize)
         zax.set_xlim(limits[0], limits[1])
@@ -358,5 +359,7 @@ def save_figure(fig: Figure, path, dpi: Optional[float] = None) -> str:
         os.makedirs(parent, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot write the figure {path!r}: no folder {parent!r} ({exc.strerror})") from None
-    fig.savefig(path, format=ext[1:], dpi=fig.dpi if dpi is None else dpi)
+    with warnings.catch_warnings():  # (a map of 2 x 2 grid points: matplotlib's layout gives up, harmlessly)
+        warnings.filterwarnings("ignore", message="constrained_layout not applied")
+        fig.savefig(path, format=ext[1:], dpi=fig.dpi if dpi is None else dpi)
     return path

@@ -458,11 +458,11 @@ def _prepare_output(filename, exts=(".png",)):
     return filename
 
 
-def _info_text(solution, magnification):
+def _info_text(solution, magnification, parameter="alpha"):
     parts = []
     alpha = getattr(solution, "alpha", None)
     if alpha is not None and np.isfinite(alpha):
-        parts.append(f"alpha = {alpha:.6g}")
+        parts.append(f"{parameter} = {alpha:.6g}")
     parts.append(f"displacements × {magnification:.3g}")
     return ",  ".join(parts)
 
@@ -470,7 +470,7 @@ def _info_text(solution, magnification):
 # ----------------------------------------------------------------------------- renders
 def render_solution(geometry, solution, filename, magnification: Optional[float] = None,
                     window_size=(1200, 800), show_stress: bool = False, stress=None,
-                    title: Optional[str] = None, legend: bool = True) -> str:
+                    title: Optional[str] = None, legend: bool = True, parameter: str = "alpha") -> str:
     """Render one deformed configuration to a PNG and return the file name.
 
     Parameters
@@ -484,6 +484,7 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
         cells are then coloured by it with a scalar bar.  ``show_stress=True`` without ``stress``
         is an error (this module does not compute stresses).
     title : text at the top; the lower-left corner shows α and the magnification.
+    parameter : the name α is shown under ("F" for a solution of a path over the friction).
     """
     filename = _prepare_output(filename)
     u = _check_solution(geometry, solution)
@@ -494,7 +495,7 @@ def render_solution(geometry, solution, filename, magnification: Optional[float]
     plotter = _new_plotter(window_size)
     try:
         _draw(plotter, geometry, solution, mag, stress=stress, point_size=_point_size(window_size),
-              legend=legend, title=title, text=_info_text(solution, mag))
+              legend=legend, title=title, text=_info_text(solution, mag, parameter))
         _view(plotter, _bounds(geometry, [u], mag, [getattr(solution, "alpha", None)]), _aspect(window_size),
               legend=legend, top=0.88 if title else 0.95)
         plotter.screenshot(filename)
@@ -514,11 +515,13 @@ def _grid_shape(k, shape):
 
 
 def render_panel(geometry, solutions: Sequence, filename, magnification: Optional[float] = None,
-                 window_size=None, shape=None, stresses=None, titles=None, legend: bool = True) -> str:
+                 window_size=None, shape=None, stresses=None, titles=None, legend: bool = True,
+                 parameter: str = "alpha") -> str:
     """Several solutions side by side (subplots ``shape``, default (1, k) up to 4, else a near-square grid).
 
     Every subplot uses the same magnification (default: auto over all solutions) and is titled
-    with its index, α and the counts of open / stick / slip nodes (or ``titles[i]``).
+    with its index, α (named ``parameter``: "F" for a path over the friction) and the counts of
+    open / stick / slip nodes (or ``titles[i]``).
     window_size defaults to 600 x 450 pixels per subplot.  Returns the file name.
     """
     filename = _prepare_output(filename)
@@ -551,7 +554,7 @@ def render_panel(geometry, solutions: Sequence, filename, magnification: Optiona
             else:
                 c = state_counts(sol.states())
                 alpha = getattr(sol, "alpha", float("nan"))
-                head = (f"#{k}" + (f"  alpha = {alpha:.4g}" if np.isfinite(alpha) else "")
+                head = (f"#{k}" + (f"  {parameter} = {alpha:.4g}" if np.isfinite(alpha) else "")
                         + f"\nopen {c['open']}, stick {c['stick']}, slip {c['slip']}")
             _draw(plotter, geometry, sol, mag, stress=None if stresses is None else stresses[k],
                   point_size=psize, legend=legend, legend_size=(0.26, 0.26), legend_loc="lower right", clim=clim, title=head,
@@ -682,7 +685,7 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
             _draw(plotter, geometry, sol, mag, stress=None if values is None else values[k], clim=clim,
                   scalar_bar=k == 0, point_size=_point_size(window_size), legend=True,
                   title=title if title is not None else f"frame {k + 1}/{len(sols)}",
-                  text=_info_text(sol, mag))
+                  text=_info_text(sol, mag, "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"))
             if k == 0:
                 _view(plotter, bounds, _aspect(window_size), legend=True)
             if kind == "png-frames":

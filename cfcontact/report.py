@@ -186,7 +186,8 @@ def turned_back_text(reach, start, parameter="alpha", unverified=False) -> str:
     transitions the seed method could not verify (:func:`unverified_text`), so the turn may be its
     fold rule's and not the problem's."""
     par = "F" if parameter == "friction" else "alpha"
-    head = f"the path turned back: it reaches {par} = {reach:.10g} at most and left its range at {par} = {start:g}; "
+    most = "at most" if reach >= start else "at least"  # (a path traced towards smaller values)
+    head = f"the path turned back: it reaches {par} = {reach:.10g} {most} and left its range at {par} = {start:g}; "
     if unverified:
         return head + (f"it passed transitions that could not be verified, so solutions beyond {reach:.10g} may "
                        f"still be connected to the start (method = \"exact\" follows them)")

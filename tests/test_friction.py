@@ -352,3 +352,21 @@ def test_friction_path_with_a_node_without_tangential_unknown():
     seed = trace_friction_path(system, 0.5, 0.0, 30.0, method="seed")
     assert [b.sets.state_codes().tolist() for b in seed.branches] == [b.sets.state_codes().tolist()
                                                                         for b in path.branches]
+
+
+def test_a_map_row_that_cannot_be_traced_to_its_end_is_unknown():
+    """At the critical friction of the blocks (nx = 4), a cusp, the alpha-path meets a singular
+    branch and ends "stuck" (a dead end) at alpha = 0.071: its row was counted as far as it went,
+    0 beyond ("the path does not reach"), although what lies beyond is unknown.  It is -1, as a
+    path that fails; fold_curves and critical_friction_path are unaffected; a degenerate alpha
+    range is refused."""
+    from cfcontact.demo_models import BLOCKS_F1, BLOCKS_F2, BLOCKS_MODEL
+    from cfcontact.models import two_blocks
+
+    system = two_blocks(nx=4, ny=2, friction=30.0, tractions1=BLOCKS_F1, tractions2=BLOCKS_F2, **BLOCKS_MODEL)
+    Fc = critical_friction_path(system, (0.0, 1.0), F_max=60.0).friction
+    res = multiplicity_map(system, np.linspace(0.0, 1.0, 11), np.array([0.5 * Fc, Fc]))
+    assert res.status[0] == "completed" and (res.counts[0] >= 1).all()
+    assert res.status[1] == "stuck" and (res.counts[1] == -1).all()
+    with pytest.raises(InputError, match="alpha_range must be two different"):
+        critical_friction_path(system, (0.5, 0.5), F_max=60.0)
