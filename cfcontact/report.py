@@ -167,6 +167,7 @@ def path_report(path, declared=None) -> dict:
     return jsonable({
         "method": path.method, "status": path.status, "n": path.n, "m": path.m,
         "parameter": getattr(path, "parameter", "alpha"),
+        "load_alpha": getattr(path, "load_alpha", None),  # (a path over F: its fixed load f(alpha))
         "alpha_start": path.alpha_start, "alpha_end": path.alpha_end,
         "points": len(path.alphas), "branches": len(path.branches),
         "transitions": [t.to_dict() for t in path.transitions],
@@ -222,7 +223,9 @@ def format_report(rep, source) -> str:
     x = "F" if friction else "alpha"  # the path's parameter in the lines below
     lines = [f"saved path: {source}",
              f"method {rep['method']}, status {rep['status']}, n = {rep['n']} DOFs, m = {rep['m']} contact nodes, "
-             f"{par} {rep['alpha_start']:g} -> {rep['alpha_end']:g}",
+             f"{par} {rep['alpha_start']:g} -> {rep['alpha_end']:g}"
+             + (f" at the load f(alpha = {rep['load_alpha']:.10g})" if friction and rep.get("load_alpha") is not None
+                else ""),
              f"points {rep['points']}, branches {rep['branches']}, transitions {len(rep['transitions'])} "
              f"({sum(t['kind'] == 'transversal' for t in rep['transitions'])} transversal, {len(rep['folds'])} folds)"]
     if rep.get("system_checksum"):
