@@ -40,7 +40,7 @@ def test_friction_case_run_info_plot_stop_and_resume(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["info", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "F (friction) 0 -> 20 at the load f(alpha = 0.3)" in text and "multiplicity over F:" in text and "alpha" not in text.split("stats:")[0]
+    assert "F (friction) 0 -> 20 at the load f(alpha = 0.3)" in text and "multiplicity over F:" in text and "alpha" not in text.split("\n", 2)[2].split("stats:")[0]
     assert cli.main(["plot", str(out), "-o", str(tmp_path / "p.png"), "-q"]) == 0
     # stopped after two transitions, resumed: the same path
     case2 = _case(tmp_path, 'parameter = "friction"\nalpha_start = 0.3\nfriction_end = 20.0', "case2.toml")
