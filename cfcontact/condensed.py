@@ -321,6 +321,9 @@ class CondensedSolver:
 
     def __init__(self, system: ContactSystem, options: Optional[SolverOptions] = None,
                  store_columns: Optional[bool] = None, schur: Optional[bool] = None):
+        if system.m == 0:
+            raise InputError("the condensed backend (the exact method, enumeration, friction maps) needs contact "
+                             "nodes; this system has m = 0 (no contact: the problem is linear, K u = f)")
         self.system = system
         self.options = options or SolverOptions()
         self.stats = CondensedStats()

@@ -282,6 +282,20 @@ def test_bad_numbers_in_the_api():
     assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
 
 
+def test_a_system_without_contact_nodes():
+    """m = 0: the seed method traces the linear problem; the condensed backend (exact method,
+    enumeration) refuses with an InputError instead of failing inside (a zero range step)."""
+    import cfcontact
+    from cfcontact.enumerate import enumerate_solutions
+    from cfcontact.system import ContactSystem
+
+    system = ContactSystem.from_arrays(np.eye(2), np.zeros((0, 2)), np.zeros((0, 2)), [1.0, 1.0], [1.0, 2.0], 1.0)
+    assert cfcontact.trace_path(system, 0.0, 1.0, method="seed").status == "completed"
+    for call in (lambda: cfcontact.trace_path(system, 0.0, 1.0, method="exact"), lambda: enumerate_solutions(system, 0.5)):
+        with pytest.raises(InputError, match="m = 0"):
+            call()
+
+
 def test_bad_arguments_of_paths_and_plots_are_input_errors(tmp_path):
     """Arguments of the wrong kind are InputErrors naming the argument, not TypeErrors from inside."""
     import cfcontact
