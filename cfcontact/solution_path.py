@@ -809,7 +809,15 @@ class SolutionPath:
 
 # ------------------------------------------------------------ checks of saved files
 def _umask() -> int:
-    """The process's file-creation mask (read by setting it and back)."""
+    """The process's file-creation mask: Linux's /proc/self/status, else read by setting it and
+    back (which another thread could see for an instant)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
