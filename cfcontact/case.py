@@ -928,13 +928,14 @@ def _pressed_size(kind):
     zones, half models and both cells (measured)."""
     def estimate(geo):
         p = {**_geometry_script(kind).DEFAULTS, **geo}
-        size, far, growth, W, D = p["size"], p["size_far"], p["growth"], p["width"], p["depth"]
+        size, growth, W, D = p["size"], p["growth"], p["width"], p["depth"]
+        far = max(p["size_far"], size)  # (as the scripts take it)
         if kind == "cylinder":
             R, zone = p["radius"], p["zone"]
             length1, area1, dist_min = 2.0 * R * math.asin(min(1.25 * zone / R, 1.0)), 0.5 * math.pi * R * R, 0.5 * zone
         else:
             w, r = p["half_width"], p["edge_radius"]
-            zone = p["zone"] if p.get("zone") is not None else w - 0.25 * r
+            zone = p.get("zone") or w - 0.25 * r  # (0 or none: the script's default)
             length1, area1, dist_min = 2.0 * (w - r + 0.5 * math.pi * r), 2.0 * w * p["height"], 2.0 * r
         length2, area2 = 2.0 * zone, W * D
         scale = 0.5 if p["half"] else 1.0
