@@ -619,7 +619,7 @@ class SolutionPath:
 
     def multiplicity(self, alpha: float) -> int:
         """Number of distinct solutions of the path at alpha."""
-        return len(self._solution_branches(float(alpha)))
+        return len(self._solution_branches(_alpha_value(alpha)))
 
     def _multiplicity_scan(self) -> tuple:
         """([(a, b, k)] for every pair of consecutive distinct branch ends a < b, k = the number of
@@ -642,7 +642,12 @@ class SolutionPath:
         if alpha_range is None:
             scan = self._multiplicity_scan()[0]
         else:
-            lo, hi = alpha_range
+            try:
+                lo, hi = (float(a) for a in alpha_range)
+            except (TypeError, ValueError):
+                raise InputError(f"alpha_range must be (lo, hi), two numbers, got {alpha_range!r}") from None
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise InputError(f"alpha_range must be (lo, hi) with finite lo < hi, got {alpha_range!r}")
             ends = sorted({float(e) for b in self.branches for e in self.branch_extent(b) if np.isfinite(e)})
             ends = sorted({lo, hi, *[e for e in ends if lo < e < hi]})
             scan = [(a, b, self.multiplicity(0.5 * (a + b))) for a, b in zip(ends[:-1], ends[1:]) if b > a]
@@ -1070,11 +1075,14 @@ def _same_point(a, b, n, rtol) -> bool:
 
 
 def _alpha_value(alpha) -> float:
-    """``alpha`` as a float (InputError for what is not one number)."""
+    """``alpha`` as a finite float (InputError for what is not one finite number)."""
     try:
-        return float(alpha)
+        value = float(alpha)
     except (TypeError, ValueError):
         raise InputError(f"alpha must be a number, got {alpha!r}") from None
+    if not np.isfinite(value):
+        raise InputError(f"alpha must be finite, got {alpha!r}")
+    return value
 
 
 def component_index(n: int, m: int, spec) -> int:

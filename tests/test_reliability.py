@@ -317,6 +317,15 @@ def test_bad_arguments_of_paths_and_plots_are_input_errors(tmp_path):
             path.component(bad)
     with pytest.raises(InputError, match="alpha must be a number"):
         path.solutions_at(None)
+    for call in (lambda: path.solutions_at(float("nan")), lambda: path.multiplicity(float("inf"))):
+        with pytest.raises(InputError, match="alpha must be finite"):
+            call()
+    with pytest.raises(InputError, match="alpha_range must be"):
+        path.multiplicity_intervals(("a", 1))
+    from cfcontact.enumerate import enumerate_solutions
+
+    with pytest.raises(InputError, match="alpha must be a number"):
+        enumerate_solutions(system, "x")
     with pytest.raises(InputError, match="samples must be an integer >= 0"):
         path.max_multiplicity(samples=-1)
     with pytest.raises(InputError, match="must be a SolutionPath"):
