@@ -394,7 +394,7 @@ def cmd_plot(args):
 
 def _par(path) -> str:
     """The name of a path's parameter in messages: "alpha", or "F" for a path over the friction."""
-    return "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"
+    return path.parameter_name
 
 
 def _animation_target(args):

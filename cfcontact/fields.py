@@ -385,7 +385,7 @@ def _path_solutions(path, alpha=None, points=False):
                 y = np.asarray(y, dtype=float)
                 yield Solution(y[:n], y[n:n + m], y[n + m:], float(a), path.branches[branches[i]].sets, 0)
         return gen(), f"{P} path points"
-    par = "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"
+    par = path.parameter_name
     if alpha is None:
         k, alpha = path.max_multiplicity()
         if not k:

@@ -17,6 +17,7 @@ module works headless and inside other applications.  Write a figure with
 
 from __future__ import annotations
 
+import numbers
 import os
 import warnings
 from typing import Optional
@@ -242,7 +243,7 @@ def _check_figure_args(figsize, dpi):
         ok = False
     if not ok:
         raise InputError(f"figsize must be (width, height) in inches, both > 0, got {figsize!r}")
-    if dpi is not None and not (isinstance(dpi, (int, float)) and np.isfinite(dpi) and dpi > 0):
+    if dpi is not None and not (isinstance(dpi, numbers.Real) and np.isfinite(dpi) and dpi > 0):
         raise InputError(f"dpi must be a number > 0, got {dpi!r}")
 
 

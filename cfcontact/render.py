@@ -685,7 +685,7 @@ def render_animation(path, filename, frames=60, magnification: Optional[float] =
             _draw(plotter, geometry, sol, mag, stress=None if values is None else values[k], clim=clim,
                   scalar_bar=k == 0, point_size=_point_size(window_size), legend=True,
                   title=title if title is not None else f"frame {k + 1}/{len(sols)}",
-                  text=_info_text(sol, mag, "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"))
+                  text=_info_text(sol, mag, path.parameter_name))
             if k == 0:
                 _view(plotter, bounds, _aspect(window_size), legend=True)
             if kind == "png-frames":

@@ -164,8 +164,7 @@ class Runner:
             self.reason = f"stopped after {transitions} transition(s)"
         elif stops.stop_at_alpha is not None and prev is not None \
                 and (pt.alpha - stops.stop_at_alpha) * (prev - stops.stop_at_alpha) <= 0 and pt.alpha != prev:
-            par = "F" if getattr(path, "parameter", "alpha") == "friction" else "alpha"
-            self.reason = f"stopped at {par}={pt.alpha:.8g} (reached {stops.stop_at_alpha:g})"
+            self.reason = f"stopped at {path.parameter_name}={pt.alpha:.8g} (reached {stops.stop_at_alpha:g})"
         elif stops.checkpoint_every and time.monotonic() - self.last_checkpoint >= stops.checkpoint_every:
             return CHECKPOINT
         return self.reason
@@ -467,7 +466,7 @@ def _write_pictures(path, case, outdir, warn) -> list:
 
             stresses = [fields.von_mises(path.geometry, s) for s in sols]  # (at its alpha: prescribed u)
         render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
-                            parameter="F" if getattr(path, "parameter", "alpha") == "friction" else "alpha",
+                            parameter=path.parameter_name,
                             window_size=None if ws is None else tuple(ws), stresses=stresses)
         files.append("panel.png")
     if out["render_animation"] and len(path.alphas):

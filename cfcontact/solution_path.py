@@ -201,6 +201,13 @@ class SolutionPath:
     #: The ``format`` of a saved path of this class (:meth:`load` reads only its own; a path over
     #: another parameter, :class:`cfcontact.friction.FrictionPath`, has its own).
     FORMAT = "cfcontact-path"
+    #: the path's parameter: "alpha" (the load path), "friction" for a path over F (FrictionPath)
+    parameter = "alpha"
+
+    @property
+    def parameter_name(self) -> str:
+        """The parameter's name in messages and pictures: "alpha", or "F" for a path over the friction."""
+        return "F" if self.parameter == "friction" else "alpha"
 
     def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
                  geometry: Optional[ContactGeometry] = None, gap=None):
