@@ -41,6 +41,7 @@ from cfcontact.run import (
     StopConditions,
     Stopped,
     load_saved_path,
+    output_folder,
     parameter_label,
     resolve_saved,
     saved_material,
@@ -183,23 +184,8 @@ def output_file(out, flag="-o") -> str:
     parent that is a file or cannot be created); its folder is created."""
     if os.path.isdir(out):
         raise CaseError(f"{flag}: {out!r} is a folder, not a file")
-    output_folder(os.path.dirname(os.path.abspath(out)), flag, out)
+    output_folder(os.path.dirname(os.path.abspath(out)), repr(out), flag)
     return out
-
-
-def output_folder(folder, flag="-o", what=None) -> str:
-    """``folder`` created if missing (CaseError naming ``flag`` when a file stands in its way)."""
-    what = what or folder
-    probe = os.path.abspath(folder)
-    while not os.path.exists(probe) and os.path.dirname(probe) != probe:
-        probe = os.path.dirname(probe)
-    if not os.path.isdir(probe):
-        raise CaseError(f"{flag}: cannot write {what!r}: {probe!r} is a file, not a folder")
-    try:
-        os.makedirs(folder, exist_ok=True)
-    except OSError as exc:
-        raise CaseError(f"{flag}: cannot create the folder {folder!r} for {what!r}: {exc.strerror}") from None
-    return folder
 
 
 def _say(args, *text):
@@ -392,11 +378,6 @@ def cmd_plot(args):
     return EXIT_OK
 
 
-def _par(path) -> str:
-    """The name of a path's parameter in messages: "alpha", or "F" for a path over the friction."""
-    return path.parameter_name
-
-
 def _animation_target(args):
     """Check (and prepare the folder of) ``--animation``: a .gif/.mp4 file or a folder of frames."""
     ext = os.path.splitext(args.animation)[1].lower()
@@ -408,7 +389,7 @@ def _animation_target(args):
     if ext:
         output_file(args.animation, "--animation")
     else:
-        output_folder(os.path.dirname(os.path.abspath(args.animation)), "--animation", args.animation)
+        output_folder(os.path.dirname(os.path.abspath(args.animation)), repr(args.animation), "--animation")
 
 
 def _render_animation(args, path, ws, src):
@@ -457,7 +438,7 @@ def cmd_render(args):
     sols = path.solutions_at(alpha)
     if not sols:
         lo, hi = float(path.alphas.min()), float(path.alphas.max())
-        raise CaseError(f"--alpha {alpha}: the path has no solution there; it covers {_par(path)} in [{lo:.10g}, "
+        raise CaseError(f"--alpha {alpha}: the path has no solution there; it covers {path.parameter_name} in [{lo:.10g}, "
                         f"{hi:.10g}]")
     out = args.output or "render.png"
     if os.path.splitext(out)[1].lower() != ".png":
@@ -471,12 +452,12 @@ def cmd_render(args):
         stresses = [fields.von_mises(path.geometry, s, material) for s in sols]
     if len(sols) > 1 or args.panel:
         render.render_panel(path.geometry, sols, out, magnification=args.magnification, window_size=ws,
-                            stresses=stresses, parameter=_par(path))
+                            stresses=stresses, parameter=path.parameter_name)
     else:
         render.render_solution(path.geometry, sols[0], out, magnification=args.magnification,
                                window_size=ws or (1200, 800), stress=None if stresses is None else stresses[0],
-                               parameter=_par(path))
-    _say(args, f"wrote {out} ({len(sols)} solution(s) at {_par(path)} = {alpha:.10g})")
+                               parameter=path.parameter_name)
+    _say(args, f"wrote {out} ({len(sols)} solution(s) at {path.parameter_name} = {alpha:.10g})")
     if args.animation:
         _render_animation(args, path, ws, src)
     return EXIT_OK
@@ -689,7 +670,7 @@ def cmd_bench(args):
 
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise CaseError(f"--output: {args.output!r} is a file, not a folder")
-    output_folder(args.output, "--output")
+    output_folder(args.output, repr(args.output), "--output")
     return bench.run(args, " ".join(["cfcontact"] + sys.argv[1:]) if _PROGRAM["main"] else "cfcontact bench")
 
 
@@ -718,7 +699,7 @@ def cmd_map(args):
                         f"{args.friction_range[1]}")
     case = load_case(args.case)
     if args.output:
-        output_folder(os.path.dirname(os.path.abspath(args.output)), "-o", args.output)
+        output_folder(os.path.dirname(os.path.abspath(args.output)), repr(args.output), "-o")
     _say(args, f"cfcontact: friction map of {os.path.basename(case['_file'])}")
     res = map_case(case, args.output, tuple(args.friction_range) if args.friction_range else None,
                    args.frictions, args.alphas, args.mark, curves=not args.no_curves, force=args.force)

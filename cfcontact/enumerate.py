@@ -27,7 +27,7 @@ from threadpoolctl import ThreadpoolController
 
 from cfcontact.errors import EnumerationTooLarge, InputError
 from cfcontact.ssnm import InactiveSets, Solution, verify
-from cfcontact.system import ContactSystem
+from cfcontact.system import ContactSystem, check_alpha
 
 log = logging.getLogger(__name__)
 
@@ -61,12 +61,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         raise EnumerationTooLarge(
             f"enumerating all solutions tries 4^m state combinations; m = {m} contact nodes exceeds the limit "
             f"max_nodes = {int(max_nodes)} (4^{m} = {4.0 ** m:.3g} combinations); raise max_nodes to force it")
-    try:
-        alpha = float(alpha)
-    except (TypeError, ValueError):
-        raise InputError(f"alpha must be a number, got {alpha!r}") from None
-    if not np.isfinite(alpha):
-        raise InputError(f"alpha must be finite, got {alpha!r}")
+    alpha = check_alpha(alpha)
     solver = solver if isinstance(solver, CondensedSolver) else get_condensed_solver(system)
     fvec = system.load(alpha) if f is None else np.asarray(f, dtype=float)
     if fvec.shape != (n,):

@@ -1,4 +1,4 @@
-"""JSON helpers shared by the saved path, checkpoints, reports and output files."""
+"""JSON and output-folder helpers shared by the saved path, checkpoints, reports and output files."""
 
 from __future__ import annotations
 
@@ -37,3 +37,25 @@ def write_json(filename, obj, strict: bool = True) -> None:
 def read_json(filename):
     with open(os.fspath(filename)) as fh:
         return json.load(fh)
+
+
+def holds_format(folder, filename, fmt, empty: bool = False) -> bool:
+    """Is ``folder`` one that cfcontact wrote: its JSON file ``filename`` says ``"format": fmt``
+    (or, with ``empty``, it is an empty folder)?  Only such folders are replaced by a --force or a
+    save."""
+    folder = os.fspath(folder)
+    if empty and os.path.isdir(folder) and not os.listdir(folder):
+        return True
+    try:
+        return read_json(os.path.join(folder, filename)).get("format") == fmt
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def blocking_file(folder):
+    """The file that stands where ``folder`` or one of its parents would have to be created (the
+    nearest of them that exists, when it is not a folder), or None."""
+    probe = os.path.abspath(os.fspath(folder))
+    while not os.path.exists(probe) and os.path.dirname(probe) != probe:
+        probe = os.path.dirname(probe)
+    return None if os.path.isdir(probe) else probe

@@ -10,7 +10,6 @@ the files appear together or not at all.  Library code: nothing is printed.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import time
@@ -18,6 +17,7 @@ import time
 import numpy as np
 
 from cfcontact.case import CaseError, build_system
+from cfcontact.jsonio import holds_format
 
 __all__ = ["map_case", "DEFAULT_POINTS"]
 
@@ -95,8 +95,4 @@ def _is_map_folder(path) -> bool:
     folder is replaced with ``force``."""
     from cfcontact.fmap import MAP_FORMAT
 
-    try:
-        with open(os.path.join(path, "map.json")) as fh:
-            return json.load(fh).get("format") == MAP_FORMAT
-    except (OSError, ValueError, AttributeError):
-        return False
+    return holds_format(path, "map.json", MAP_FORMAT)

@@ -41,7 +41,7 @@ from typing import Callable, Optional
 
 from cfcontact.case import CaseError, build_system, path_request, physics
 from cfcontact.errors import InputError, StartInterrupted
-from cfcontact.jsonio import read_json, write_json
+from cfcontact.jsonio import blocking_file, holds_format, read_json, write_json
 from cfcontact.material import DEFAULT_MATERIAL
 from cfcontact.path import path_stepper, select_solver
 from cfcontact.report import path_report
@@ -52,7 +52,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
            "has_checkpoint", "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "load_saved_path",
-           "parameter_label", "RUN_FORMAT",
+           "parameter_label", "output_folder", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
 RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
@@ -505,13 +505,23 @@ def panel_solutions(path):
     return sols
 
 
-def _is_run_folder(d):
-    if not os.listdir(d):
-        return True
+def output_folder(folder, what, flag=None) -> str:
+    """``folder`` created if missing, to hold ``what`` (its description in messages); CaseError
+    (prefixed by the command-line ``flag`` when given) where a file stands in its way or it
+    cannot be created."""
+    prefix = f"{flag}: " if flag else ""
+    blocking = blocking_file(folder)
+    if blocking is not None:
+        raise CaseError(f"{prefix}cannot write {what}: {blocking!r} is a file, not a folder")
     try:
-        return read_json(os.path.join(d, "summary.json")).get("format") == RUN_FORMAT
-    except (OSError, ValueError, AttributeError):
-        return False
+        os.makedirs(folder, exist_ok=True)
+    except OSError as exc:
+        raise CaseError(f"{prefix}cannot create the folder {folder!r} for {what}: {exc.strerror}") from None
+    return folder
+
+
+def _is_run_folder(d):
+    return holds_format(d, "summary.json", RUN_FORMAT, empty=True)
 
 
 def _link_tree(src, dst):
@@ -560,14 +570,7 @@ class CaseRun:
         self.timings = {}
         self.created = False
         self.resume = None
-        parent = os.path.dirname(self.out)
-        if os.path.exists(parent) and not os.path.isdir(parent):
-            raise CaseError(f"cannot write the output folder {self.out!r}: {parent!r} is a file, not a folder")
-        try:
-            os.makedirs(parent, exist_ok=True)
-        except OSError as exc:
-            raise CaseError(f"cannot create the folder {parent!r} for the output {self.out!r}: {exc.strerror}") \
-                from None
+        output_folder(os.path.dirname(self.out), f"the output folder {self.out!r}")
         self.lock = OutputLock(self.out).acquire()
         try:
             self._check_folders(force, resume, warn)
@@ -757,7 +760,7 @@ def load_saved_path(dirname) -> SolutionPath:
 
 def parameter_label(path) -> str:
     """The x label of a path's plots: "α", or "F" for a path over the friction coefficient."""
-    return "F" if getattr(path, "parameter", "alpha") == "friction" else "α"
+    return "α" if path.parameter_name == "alpha" else path.parameter_name
 
 
 def resolve_saved(dirname) -> str:

@@ -40,9 +40,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from cfcontact.errors import InputError
-from cfcontact.jsonio import jsonable
+from cfcontact.jsonio import blocking_file, holds_format, jsonable
 from cfcontact.ssnm import InactiveSets, Solution
-from cfcontact.system import ContactGeometry, ContactSystem
+from cfcontact.system import ContactGeometry, ContactSystem, check_alpha
 
 #: Version 2 stores the branches in reference form (alpha_ref, Y_ref, dY) and the gap; version 1
 #: (Y1, Y2 at alpha = 0 and 1, no gap) still loads.
@@ -563,7 +563,7 @@ class SolutionPath:
 
         Returns a list of :class:`Solution` sorted by branch order.
         """
-        alpha = _alpha_value(alpha)
+        alpha = check_alpha(alpha)
         picked = self._solution_branches(alpha, rtol)
         self.form([b.index for b in picked])
         out = []
@@ -626,7 +626,7 @@ class SolutionPath:
 
     def multiplicity(self, alpha: float) -> int:
         """Number of distinct solutions of the path at alpha."""
-        return len(self._solution_branches(_alpha_value(alpha)))
+        return len(self._solution_branches(check_alpha(alpha)))
 
     def _multiplicity_scan(self) -> tuple:
         """([(a, b, k)] for every pair of consecutive distinct branch ends a < b, k = the number of
@@ -724,11 +724,9 @@ class SolutionPath:
         path = os.fspath(path)
         if not path.strip():
             raise InputError("save needs a folder name, got an empty path")
-        probe = os.path.dirname(os.path.abspath(path))
-        while not os.path.exists(probe) and os.path.dirname(probe) != probe:
-            probe = os.path.dirname(probe)
-        if not os.path.isdir(probe):
-            raise InputError(f"cannot save to {path!r}: {probe!r} is a file, not a folder")
+        blocking = blocking_file(os.path.dirname(os.path.abspath(path)))
+        if blocking is not None:
+            raise InputError(f"cannot save to {path!r}: {blocking!r} is a file, not a folder")
         if os.path.lexists(path) and not _replaceable(path, self.FORMAT):
             raise InputError(f"refusing to replace {path!r}: it is not a saved cfcontact path (a folder with path.json) "
                              "nor an empty folder; choose another folder")
@@ -840,14 +838,7 @@ def _replaceable(path, fmt) -> bool:
     says it is a saved path of format ``fmt`` (not the working directory itself)?"""
     if os.path.islink(path) or not os.path.isdir(path) or os.path.abspath(path) == os.getcwd():
         return False
-    names = os.listdir(path)
-    if not names:
-        return True
-    try:
-        with open(os.path.join(path, "path.json")) as fh:
-            return json.load(fh).get("format") == fmt
-    except (OSError, ValueError, AttributeError):
-        return False
+    return holds_format(path, "path.json", fmt, empty=True)
 
 
 class _Bad(Exception):
@@ -1079,17 +1070,6 @@ def _same_point(a, b, n, rtol) -> bool:
         x, z = (x if xl else x[n:]), (z if zl else z[n:])
     return bool(np.abs(x - z).max(initial=0.0) <= rtol * max(np.abs(x).max(initial=0.0),
                                                              np.abs(z).max(initial=0.0), 1e-300))
-
-
-def _alpha_value(alpha) -> float:
-    """``alpha`` as a finite float (InputError for what is not one finite number)."""
-    try:
-        value = float(alpha)
-    except (TypeError, ValueError):
-        raise InputError(f"alpha must be a number, got {alpha!r}") from None
-    if not np.isfinite(value):
-        raise InputError(f"alpha must be finite, got {alpha!r}")
-    return value
 
 
 def component_index(n: int, m: int, spec) -> int:

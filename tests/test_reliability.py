@@ -315,16 +315,16 @@ def test_bad_arguments_of_paths_and_plots_are_input_errors(tmp_path):
     for bad in ("lam_n:x", ("lam_n", 0, 1), None):
         with pytest.raises(InputError, match="component"):
             path.component(bad)
-    with pytest.raises(InputError, match="alpha must be a number"):
+    with pytest.raises(InputError, match="alpha must be a finite number, got None"):
         path.solutions_at(None)
     for call in (lambda: path.solutions_at(float("nan")), lambda: path.multiplicity(float("inf"))):
-        with pytest.raises(InputError, match="alpha must be finite"):
+        with pytest.raises(InputError, match="alpha must be a finite number, got (nan|inf)"):
             call()
     with pytest.raises(InputError, match="alpha_range must be"):
         path.multiplicity_intervals(("a", 1))
     from cfcontact.enumerate import enumerate_solutions
 
-    with pytest.raises(InputError, match="alpha must be a number"):
+    with pytest.raises(InputError, match="alpha must be a finite number, got 'x'"):
         enumerate_solutions(system, "x")
     with pytest.raises(InputError, match="samples must be an integer >= 0"):
         path.max_multiplicity(samples=-1)
