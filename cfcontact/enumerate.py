@@ -105,7 +105,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         cons &= np.where(codes == 3, bm <= tol, True)
         good = np.flatnonzero(ok & np.all(cons, axis=1))
         for k in good:
-            y = np.concatenate([solver.displacement(fvec, lam[k]), lam[k]])
+            y = np.concatenate([solver.displacement(fvec, lam[k], solver.imposed_rows(codes[k].astype(np.int8))), lam[k]])
             if not np.all(np.isfinite(y)):
                 continue
             if not verify(system, y, alpha, f=fvec, solver=solver).ok(1e-8):

@@ -401,7 +401,7 @@ class _CondensedData:
         solver = self.solver
 
         def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
-            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0])
+            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0], imposed, (True, False))
             return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
 
         return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg, floor

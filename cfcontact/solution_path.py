@@ -444,7 +444,8 @@ class SolutionPath:
                 a_r, lr, dl = self._lam[b]
                 lams[:, 2 * k], lams[:, 2 * k + 1] = lr, lr + dl
                 alphas[2 * k], alphas[2 * k + 1] = a_r, a_r + 1.0
-            U = source.displacements(lams, alphas)
+            imposed = np.repeat(np.column_stack([source.imposed_of_sets(self.branches[b].sets) for b in bs]), 2, axis=1)
+            U = source.displacements(lams, alphas, imposed, np.tile([True, False], len(bs)))
             for k, b in enumerate(bs):
                 a_r, lr, dl = self._lam[b]
                 self._Y[b] = (a_r, np.concatenate([U[:, 2 * k], lr]),
@@ -478,7 +479,8 @@ class SolutionPath:
                 by_source.setdefault(id(src), (src, []))[1].append(i)
             for src, ii in by_source.values():
                 lams = np.stack([self._point_lam(i) for i in ii], axis=1)
-                U = src.displacements(lams, [self._alphas[i] for i in ii])
+                imposed = np.column_stack([src.imposed_of_sets(self.branches[self._point_branch[i]].sets) for i in ii])
+                U = src.displacements(lams, [self._alphas[i] for i in ii], imposed)
                 for k, i in enumerate(ii):
                     formed[i] = np.concatenate([U[:, k], lams[:, k]])
             for i in idx:

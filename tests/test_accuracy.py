@@ -259,24 +259,29 @@ def test_strip_with_random_loads_at_F_30_verifies_to_1e_9_at_every_point():
     assert worst_residual(system, path, solver) < 1e-9
 
 
-def test_large_models_refine_below_the_small_models_probe_threshold():
+def test_large_models_refine_below_the_small_models_probe_threshold(monkeypatch):
     """A strip of L/H = 14, 5 cells across, m = 700, random loads at F = 30: its probe (solves off
     by 8e-12 in B x on Debian 12) is below REFINE_RTOL, and unrefined its points are 2e-8 off
     (1)-(3); above NATIVE_MAX_DOFS the threshold is REFINE_RTOL_LARGE, and refined it verifies to
-    1e-9."""
+    1e-9.  (Compared with the points' shift onto their imposed rows off, CONSISTENT_RTOL: with it,
+    even the unrefined points are within 1e-9.)"""
     from cfcontact.bench_stress import strip
     from cfcontact.report import worst_residual
 
     system = strip(700, 30.0, seed=1, kind="random")
     assert system.n > condensed.NATIVE_MAX_DOFS
-    worst = {}
+    worst, shifted = {}, {}
     for refine in (False, None):
         solver = CondensedSolver(system, SolverOptions(refine=refine))
         path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
         assert path.status == "completed" and len(path.transitions) > 100
-        worst[refine] = worst_residual(system, path, solver)
+        with monkeypatch.context() as mp:
+            mp.setattr(condensed, "CONSISTENT_RTOL", np.inf)
+            worst[refine] = worst_residual(system, path, solver)
+        shifted[refine] = worst_residual(system, path, solver)
     assert solver.solve_error > condensed.REFINE_RTOL_LARGE and solver.refine_steps >= 1  # (8.2e-12 on Debian 12)
     assert worst[False] > 1e-9 and worst[None] < 1e-9, worst  # 2.1e-8 and 6.6e-10 on Debian 12
+    assert max(shifted.values()) < 1e-9, shifted  # 8.5e-10 and 3.7e-10 on Debian 12
 
 
 def test_needs_true_measures_the_point_not_the_slip_indicators(strip):
@@ -439,3 +444,55 @@ def test_slender_strip_at_F_30_keeps_every_stored_point_within_its_rounding():
     assert path.status == "completed" and len(path.transitions) == 5
     assert solver.refine_steps >= 1 and solver.stats.true_corrections > 0
     assert worst_residual(system, path, solver) < 5e-10
+
+
+def _ill_conditioned_lumped(seed, n=10, m=2, cond=1e8):
+    """A lumped system with cond(K) = 1e8 and dense random contact maps: rho |S| is about 1e7, so
+    u = K^-1 (f - B^T lam) moves B u by S times lam's rounding, far above 1e-9 of the point."""
+    from cfcontact.system import ContactSystem
+
+    rng = np.random.default_rng(seed)
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    K = (Q * np.logspace(0, np.log10(cond), n)) @ Q.T
+    N, T = rng.standard_normal((m, n)), rng.standard_normal((m, n))
+    f1 = rng.standard_normal(n) + N.T @ rng.uniform(0, 2, m)
+    f2 = rng.standard_normal(n) + N.T @ rng.uniform(0, 2, m)
+    return ContactSystem.from_arrays(0.5 * (K + K.T), N, T, f1, f2, 1.0)
+
+
+def test_points_are_shifted_onto_their_imposed_rows(monkeypatch):
+    """Ill-conditioned lumped systems: formed without the shift onto the rows their states impose
+    (CONSISTENT_RTOL), 9 of these 20 paths have points 1.0e-9 to 3.5e-9 from (1)-(3) (their
+    multipliers right to 1e-11); with it every point is within 1e-9 (at most 9e-11 here)."""
+    from cfcontact.report import worst_residual
+
+    plain, shifted = [], []
+    for seed in range(20):
+        system = _ill_conditioned_lumped(seed)
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        assert path.status == "completed"
+        shifted.append(worst_residual(system, path))
+        with monkeypatch.context() as mp:
+            mp.setattr(condensed, "CONSISTENT_RTOL", np.inf)
+            plain.append(worst_residual(system, path))
+    assert max(shifted) < 1e-9, shifted
+    assert sum(w > 1e-9 for w in plain) >= 6, plain
+
+
+def test_enumeration_finds_the_solutions_of_ill_conditioned_systems(monkeypatch):
+    """Enumeration keeps a consistent combination when its point verifies to 1e-8: on these
+    systems the point formed from the multipliers alone failed that (it found no solution at
+    all where the path has one); shifted onto its imposed rows it verifies, and it is the
+    path's."""
+    from cfcontact.enumerate import enumerate_solutions
+
+    for seed, alpha in ((12, 0.75), (20, 0.25)):
+        system = _ill_conditioned_lumped(seed)
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+        (on_path,) = path.solutions_at(alpha)
+        (found,) = enumerate_solutions(system, alpha)
+        assert found.sets == on_path.sets
+        assert np.abs(found.y[system.n:] - on_path.y[system.n:]).max() <= 1e-8 * np.abs(on_path.y[system.n:]).max()
+        with monkeypatch.context() as mp:
+            mp.setattr(condensed, "CONSISTENT_RTOL", np.inf)
+            assert enumerate_solutions(system, alpha) == []
