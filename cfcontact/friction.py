@@ -164,14 +164,18 @@ class FrictionPath(SolutionPath):
         for b in sorted(self._pending):
             by_source.setdefault(id(self._pending[b]), (self._pending[b], []))[1].append(b)
         for source, bs in by_source.values():
-            cols, where = [], []
+            cols, where, imposed, points = [], [], [], []
             for b in bs:
                 fb = self._fb[b]
                 s = max(float(np.abs(fb["lam0"]).max(initial=0.0)), float(np.abs(fb["L"]).max(initial=0.0)), 1e-300)
                 where.append((b, len(cols), fb["L"].shape[1], s))
                 cols.append(fb["lam0"])
                 cols.extend(fb["lam0"] + s * fb["L"][:, i] for i in range(fb["L"].shape[1]))
-            U = source.displacements(np.column_stack(cols), [self.load_alpha] * len(cols))
+                # the branch's imposed rows hold for every column (S_I L = 0: they hold at every F)
+                imposed.extend([source.imposed_of_sets(self.branches[b].sets)] * (1 + fb["L"].shape[1]))
+                points.extend([True] + [False] * fb["L"].shape[1])
+            U = source.displacements(np.column_stack(cols), [self.load_alpha] * len(cols), np.column_stack(imposed),
+                                     points)
             for b, c0, p, s in where:
                 u0 = U[:, c0]
                 self._fu[b] = (u0.copy(), (U[:, c0 + 1:c0 + 1 + p] - u0[:, None]) / s)
