@@ -62,6 +62,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
             f"enumerating all solutions tries 4^m state combinations; m = {m} contact nodes exceeds the limit "
             f"max_nodes = {int(max_nodes)} (4^{m} = {4.0 ** m:.3g} combinations); raise max_nodes to force it")
     alpha = check_alpha(alpha)
+    system.check_positive_definite()  # (cached) with an indefinite K "no solution" would be no answer
     solver = solver if isinstance(solver, CondensedSolver) else get_condensed_solver(system)
     fvec = system.load(alpha) if f is None else np.asarray(f, dtype=float)
     if fvec.shape != (n,):

@@ -1993,6 +1993,7 @@ def trace_exact(system: ContactSystem, alpha_start: float = 0.0, alpha_end: floa
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
     if callback is not None and not callable(callback):  # (the monitor is checked where it is used)
         raise InputError(f"callback must be a function of a PathPoint (or None), got {callback!r}")
+    system.check_positive_definite()  # (cached) an indefinite K has no path: say so, not "no solution found"
     return ExactStepper(system, span, opts, solver, y0=y0, resume=resume, start_sets=start_sets,
                         orientation=orientation, monitor=monitor).run(callback)
 

@@ -80,6 +80,7 @@ MAX_PROBES = 20000
 def _paths_setup(system, solver, options):
     from cfcontact.condensed import CondensedSolver, get_condensed_solver
 
+    system.check_positive_definite()  # (once: the rows' systems share what it found, ContactSystem._same_K)
     if solver is None:
         solver = get_condensed_solver(system)
     elif not isinstance(solver, CondensedSolver):

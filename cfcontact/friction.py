@@ -338,6 +338,7 @@ def _check_request(system, alpha, F_start, F_end, options, method, solver):
         raise InputError(f"the friction range must be two different finite numbers >= 0, got F_start={F_start!r}, "
                          f"F_end={F_end!r} (alpha={alpha!r})")
     opts = options if isinstance(options, PathOptions) else PathOptions.with_overrides(None, **(options or {}))
+    system.check_positive_definite()  # (cached) before the solver factors K
     if solver is None:
         solver = get_condensed_solver(system)
     elif not isinstance(solver, CondensedSolver):

@@ -444,6 +444,7 @@ def ssnm(system: ContactSystem, alpha: float = 0.0, y0=None, tol: float = 1e-9, 
         raise InputError(f"tol must be > 0, got {tol!r}")
     if int(max_iter) < 1:
         raise InputError(f"max_iter must be >= 1, got {max_iter!r}")
+    system.check_positive_definite()  # (cached) SSNM would wander on an indefinite K
     solver = solver or get_solver(system)
     fvec = _load_vector(system, alpha, f)
     y_prev = np.zeros(system.n + 2 * system.m) if y0 is None else _as_y(system, y0)

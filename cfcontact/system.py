@@ -270,14 +270,16 @@ class ContactSystem:
         return self._cache["inertia"]
 
     def _diagonal_signs(self):
-        """(non-positive diagonal entries of K, the first of them) over all ranks."""
-        d = np.asarray(self.K.getDiagonal().getArray(readonly=True))
-        r0 = self.K.getOwnershipRange()[0]
-        bad = np.flatnonzero(d <= 0.0)
-        first = int(bad[0]) + r0 if bad.size else -1
-        count = self.comm.allreduce(int(bad.size))
-        firsts = [f for f in self.comm.allgather(first) if f >= 0]
-        return count, (min(firsts) if firsts else -1)
+        """(non-positive diagonal entries of K, the first of them) over all ranks, cached."""
+        if "diagonal_signs" not in self._cache:
+            d = np.asarray(self.K.getDiagonal().getArray(readonly=True))
+            r0 = self.K.getOwnershipRange()[0]
+            bad = np.flatnonzero(d <= 0.0)
+            first = int(bad[0]) + r0 if bad.size else -1
+            count = self.comm.allreduce(int(bad.size))
+            firsts = [f for f in self.comm.allgather(first) if f >= 0]
+            self._cache["diagonal_signs"] = (count, (min(firsts) if firsts else -1))
+        return self._cache["diagonal_signs"]
 
     def check_positive_definite(self):
         """Raise :class:`~cfcontact.errors.NotPositiveDefiniteError` when K has negative eigenvalues
@@ -340,21 +342,28 @@ class ContactSystem:
     # ------------------------------------------------------------ variations
     def with_friction(self, friction) -> "ContactSystem":
         """The same system (sharing K, N, T, loads) with another friction coefficient."""
-        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry, dict(self.info),
-                             self.gap)
+        return self._same_K(ContactSystem(self.K, self.N, self.T, self.f1, self.f2, friction, self.rho, self.geometry,
+                                          dict(self.info), self.gap))
+
+    def _same_K(self, other: "ContactSystem") -> "ContactSystem":
+        """``other`` (a variation sharing K) with what this system knows of K: its inertia, the
+        signs of its diagonal, its norm (a friction map makes a system per row: the check of K
+        would factor it again for each)."""
+        other._cache.update({k: self._cache[k] for k in ("inertia", "diagonal_signs", "K_norm") if k in self._cache})
+        return other
 
     def with_gap(self, gap) -> "ContactSystem":
         """The same system with another initial gap (an (m,) array, or None for zero)."""
-        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, self.rho, self.geometry,
-                             dict(self.info), gap)
+        return self._same_K(ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, self.rho,
+                                          self.geometry, dict(self.info), gap))
 
     def with_rho(self, rho: float) -> "ContactSystem":
         """The same system with another augmentation parameter rho > 0.  The solutions of (1)-(3)
         do not depend on rho; the convergence of SSNM and the set tests do."""
         if not (np.isfinite(rho) and rho > 0):
             raise InputError(f"rho must be a finite number > 0, got {rho!r}")
-        return ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, float(rho), self.geometry,
-                             dict(self.info), self.gap)
+        return self._same_K(ContactSystem(self.K, self.N, self.T, self.f1, self.f2, self.friction, float(rho),
+                                          self.geometry, dict(self.info), self.gap))
 
     def with_loads(self, f1, f2) -> "ContactSystem":
         """The same system with other load vectors (NumPy arrays of length n or PETSc Vecs)."""
@@ -368,8 +377,8 @@ class ContactSystem:
                 if f.shape != (self.n,):
                     raise InputError(f"load vector {name} has shape {f.shape}, expected ({self.n},)")
                 vecs.append(linalg.vec_from_numpy(f, self.comm, ranges))
-        return ContactSystem(self.K, self.N, self.T, vecs[0], vecs[1], self.friction, self.rho, self.geometry,
-                             dict(self.info), self.gap)
+        return self._same_K(ContactSystem(self.K, self.N, self.T, vecs[0], vecs[1], self.friction, self.rho,
+                                          self.geometry, dict(self.info), self.gap))
 
     # ----------------------------------------------------------- constructors
     @classmethod

@@ -664,3 +664,37 @@ def test_ctrl_c_during_library_imports_is_raised_after_them():
     with sigint_deferred():  # without a Ctrl-C: nothing raised
         done.append(False)
     assert signal.getsignal(signal.SIGINT) is before
+
+
+@pytest.mark.parametrize("entry", ["trace_exact", "trace_tree", "enumerate_solutions", "ssnm", "trace_friction_path"])
+def test_every_entry_point_checks_K(entry):
+    """Not only trace_path: the exact method, the tree, enumeration, SSNM and the path in F refuse
+    an indefinite or singular K by name (they answered "no solution found at alpha=0.0", an empty
+    list of solutions, or "SSNM did not converge")."""
+    import cfcontact
+    from cfcontact import exact
+    from cfcontact.errors import NotPositiveDefiniteError, SingularSystemError
+
+    calls = {"trace_exact": lambda s: exact.trace_exact(s),
+             "trace_tree": lambda s: exact.trace_tree(s),
+             "enumerate_solutions": lambda s: cfcontact.enumerate_solutions(s, 0.5),
+             "ssnm": lambda s: cfcontact.ssnm(s, 0.5),
+             "trace_friction_path": lambda s: cfcontact.trace_friction_path(s, 0.5, 0.1, 1.0)}
+    with pytest.raises(NotPositiveDefiniteError, match="1 negative eigenvalue of 2"):
+        calls[entry](_system([[1.0, 2.0], [2.0, 1.0]]))
+    with pytest.raises(SingularSystemError, match="K is singular"):
+        calls[entry](_system([[1.0, -1.0], [-1.0, 1.0]]))
+
+
+def test_variations_of_a_system_share_its_check_of_K(monkeypatch):
+    """with_friction, with_gap, with_rho and with_loads share K: they take its inertia along (a
+    friction map makes a system per row and would factor K again for each check)."""
+    from cfcontact import linalg
+
+    system = _system([[2.0, -1.0], [-1.0, 2.0]])
+    system.check_positive_definite()
+    monkeypatch.setattr(linalg, "inertia", lambda K: pytest.fail("K factored again for its inertia"))
+    for other in (system.with_friction(0.7), system.with_gap([0.1]), system.with_rho(3.0),
+                  system.with_loads(np.ones(2), np.zeros(2))):
+        other.check_positive_definite()
+        assert other.inertia() == system.inertia()
