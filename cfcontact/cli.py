@@ -48,6 +48,11 @@ from cfcontact.run import (
 )
 
 EXIT_OK, EXIT_FAILURE, EXIT_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: the outputs are written, but the path did not reach the end of its range (its status is one of
+#: INCOMPLETE_STATUSES, or rows of a map could not be traced): a script must not take it for a
+#: whole result
+EXIT_INCOMPLETE = 4
+INCOMPLETE_STATUSES = ("stuck", "cycling", "max_transitions")
 
 
 # ============================================================ progress / logging
@@ -334,7 +339,7 @@ def _run_case(args, case, run, stops, t_start):
     _say(args, f"cfcontact: {s['status']}: {s['points']} points, {s['branches']} branches, {s['transitions']} "
                f"transitions ({s['folds']} folds), max multiplicity {s['max_multiplicity']}; wrote {run.out}/ "
                f"({', '.join(files)})")
-    return EXIT_OK
+    return EXIT_INCOMPLETE if s["status"] in INCOMPLETE_STATUSES else EXIT_OK
 
 
 def _load_saved(dirname):
@@ -712,7 +717,7 @@ def cmd_map(args):
     _say(args, f"cfcontact: critical friction of the path: {crit if crit is not None else '(no curves computed)'}")
     _say(args, f"cfcontact: up to {res['max_solutions']} solutions, {res['curves']} fold curve(s), {res['cusps']} "
                f"cusp(s); wrote {res['output']}/ ({', '.join(res['files'])})")
-    return EXIT_OK
+    return EXIT_INCOMPLETE if res["untraced"] else EXIT_OK
 
 
 def _setup_map(sub, common):

@@ -856,3 +856,15 @@ def test_time_limit_during_a_homotopy_start(tmp_path, capsys):
     path = SolutionPath.load(str(tmp_path / "case_out" / "path"))
     assert path.stats["start"] == "frictionless"  # SSNM did not converge: the homotopy reached it
     assert summary["status"] == "completed"
+
+
+def test_run_exits_4_when_the_path_is_incomplete(tmp_path, capsys):
+    """A path cut short by its transition cap is written (its outputs, summary.json with the
+    status) but the exit code is 4, not 0: a script must not take it for a whole result."""
+    case = _write(tmp_path, SMALL.replace("[output]", '[path]\nmethod = "exact"\nmax_transitions = 2\n'
+                                          '[output]\nplot = false\nrender_panel = false\n'))
+    assert cli.main(["run", case]) == cli.EXIT_INCOMPLETE == 4
+    err = capsys.readouterr().err
+    assert "the path ended with status 'max_transitions'" in err
+    summary = json.loads((tmp_path / "case_out" / "summary.json").read_text())
+    assert summary["status"] == "max_transitions" and len(summary["transitions"]) == 2

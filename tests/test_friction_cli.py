@@ -114,3 +114,21 @@ def test_demo_script_and_bench_part_e(tmp_path):
     c = json.loads((tmp_path / "bench" / "bench.json").read_text())["part_e"]
     assert c["points"] == 40 and abs(c["critical_friction"] - 0.5661252421) < 1e-8
     assert c["map_time"] > 0 and c["alpha_paths_time"] > 0 and c["curves"] > 0
+
+
+@pytest.mark.slow
+def test_map_exits_4_when_a_row_is_unknown(tmp_path, capsys):
+    """A row at the path's critical friction (a cusp: its alpha-path ends "stuck") is marked -1;
+    the map is written, the warning names the row, and the exit code is 4, not 0."""
+    import numpy as np
+
+    from cfcontact.case import build_system, load_case
+    from cfcontact.fmap import critical_friction_path
+
+    case = _case(tmp_path, "")
+    Fc = critical_friction_path(build_system(load_case(case)), (0.0, 1.0), F_max=60.0).friction
+    args = ["map", case, "--friction-range", repr(Fc), "30", "--frictions", "2", "--alphas", "11", "--no-curves"]
+    assert cli.main(args) == cli.EXIT_INCOMPLETE
+    assert "1 row(s) of the map could not be traced" in capsys.readouterr().err
+    counts = np.asarray(json.loads((tmp_path / "case_map" / "map.json").read_text())["counts"])
+    assert (counts[0] == -1).all() and (counts[1] >= 1).all()
