@@ -852,23 +852,14 @@ class CondensedSolver:
         self._cache_loads(fs, BX[:, m2:])
         return BX[:, :m2]
 
-    def _allmax(self, a: np.ndarray) -> np.ndarray:
-        """The entrywise maximum of ``a`` over the ranks."""
-        if self.size == 1:
-            return a
-        from mpi4py import MPI
-
-        out = np.empty_like(a)
-        self.comm.Allreduce(np.ascontiguousarray(a), out, op=MPI.MAX)
-        return out
-
-    def _allreduce(self, a: np.ndarray) -> np.ndarray:
+    def _allreduce(self, a: np.ndarray, op: str = "SUM") -> np.ndarray:
+        """The entrywise sum (``op="MAX"``: maximum) of ``a`` over the ranks."""
         if self.size == 1:
             return a
         out = np.empty_like(a)
         from mpi4py import MPI
 
-        self.comm.Allreduce(np.ascontiguousarray(a), out, op=MPI.SUM)
+        self.comm.Allreduce(np.ascontiguousarray(a), out, op=getattr(MPI, op))
         return out
 
     def _schur(self) -> np.ndarray:
@@ -1527,9 +1518,9 @@ class CondensedSolver:
         res1, wrong1, size1 = errors(rows_of(Y), todo, rows)
         # the shift moves (1) by B_I^T D: its backward error as verify measures it, against
         # ||K|| |u| + |B^T lam| (|f| left out: an upper bound)
-        amax = self._allmax(np.vstack([np.abs(BtD).max(axis=0, initial=0.0),
-                                       np.abs(self.B_local.T @ lams[:, todo]).max(axis=0, initial=0.0),
-                                       np.abs(Y).max(axis=0, initial=0.0)]))
+        amax = self._allreduce(np.vstack([np.abs(BtD).max(axis=0, initial=0.0),
+                                          np.abs(self.B_local.T @ lams[:, todo]).max(axis=0, initial=0.0),
+                                          np.abs(Y).max(axis=0, initial=0.0)]), "MAX")
         eq1 = amax[0] / np.maximum(self.system.K_norm() * amax[2] + amax[1], 1e-300)
         better = np.maximum(np.maximum(res1, wrong1) / size1, eq1) < 0.5 * err[todo]
         X[:, todo[better]] = Y[:, better]
