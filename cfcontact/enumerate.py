@@ -10,8 +10,9 @@ condensed form (:mod:`cfcontact.condensed`): with S = B K^-1 B^T and w = B K^-1 
 (one factorization of K for the whole enumeration) DirNeu(Z, f) is a dense 2m x 2m system in
 lam = (lam_n, lam_t); the systems are solved in vectorized batches.  A combination is kept when
 its solution is consistent with it (Remark 3.1, the indicator signs; ties at transition points
-are accepted up to a relative slack), then it must satisfy (1)-(3) (``verify(...).ok(1e-8)``);
-equal solutions are reported once.  Cost: 4^m dense solves of size 2m; refused (a clear
+are accepted up to a relative slack, the force conditions against the forces), then it must
+satisfy (1)-(3) (``verify(...).ok(1e-8)``); equal solutions (equal multipliers) are reported
+once.  Cost: 4^m dense solves of size 2m; refused (a clear
 :class:`~cfcontact.errors.EnumerationTooLarge`) for m > ``max_nodes`` (default 10: about 1e6
 combinations, some seconds).
 """
@@ -34,6 +35,11 @@ log = logging.getLogger(__name__)
 DEFAULT_MAX_NODES = 10
 CHUNK = 16384
 SLACK = 1e-9
+#: ... of each node's own scale: the force conditions (lam_n >= 0 at a closed node, the cone at
+#: a sticking one) up to this share of the largest force (a model whose open nodes' rho |B u| is
+#: 1e6 times its loads kept a node with lam_n of -2 times the largest force), the gap and slip
+#: conditions up to SLACK of their own row's terms
+FORCE_SLACK = 1e-7
 
 
 def _combos(radices, c0, c1):
@@ -79,7 +85,7 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
     total = int(np.prod(radices)) if m else 1
     I2 = np.eye(2 * m)
     idx = np.arange(m)
-    found, ys = [], []
+    found, ys, top = [], [], 0.0  # ys: the multipliers found; top: the largest of them
     for c0 in range(0, total, CHUNK):
         digits = _combos(radices, c0, min(total, c0 + CHUNK))
         codes = np.stack([states[i][digits[:, i]] for i in range(m)], axis=1) if m else np.zeros((1, 0), int)
@@ -99,11 +105,23 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         bp, bm = b - F * lam[:, :m], b + F * lam[:, :m]
         scale = np.maximum(np.abs(np.concatenate([a, bp, bm], axis=1)).max(axis=1, initial=0), 1e-300)
         tol = SLACK * scale[:, None]
-        cons = np.where(nu, a <= tol, a >= -tol)
+        # each node's conditions at its own scale, not at that of the largest indicator (a node
+        # pulled 1e12 away from its foundation made a neighbour's lam_n = -1 and a slip against
+        # its force look like rounding): a closed node's a and a sticking node's b+- are forces
+        # (lam_n >= 0, |lam_t| <= F lam_n), judged against the forces; an open node's gap and a
+        # slipping node's slip against the terms of their own row of rho (w - S lam), whose
+        # rounding also bounds a force condition's imposed row
+        terms = rho * (np.abs(w)[None] + np.abs(lam) @ np.abs(S).T)
+        tn, tt = terms[:, :m], terms[:, m:]
+        eps64 = 64.0 * np.finfo(float).eps
+        force = FORCE_SLACK * np.abs(lam).max(axis=1, initial=0.0)[:, None]
+        cons = np.where(nu, a <= np.minimum(tol, SLACK * tn), a >= -np.minimum(tol, force + eps64 * tn))
         stick = codes == 1
-        cons &= np.where(stick, (bp <= tol) & (bm >= -tol), True)
-        cons &= np.where((codes == 2) & ~F0, bp >= -tol, True)
-        cons &= np.where(codes == 3, bm <= tol, True)
+        tol_f = np.minimum(tol, force + eps64 * tt)
+        cons &= np.where(stick, (bp <= tol_f) & (bm >= -tol_f), True)
+        tol_s = np.minimum(tol, SLACK * tt)
+        cons &= np.where((codes == 2) & ~F0, bp >= -tol_s, True)
+        cons &= np.where(codes == 3, bm <= tol_s, True)
         good = np.flatnonzero(ok & np.all(cons, axis=1))
         for k in good:
             y = np.concatenate([solver.displacement(fvec, lam[k], solver.imposed_rows(codes[k].astype(np.int8))), lam[k]])
@@ -112,10 +130,14 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
             if not verify(system, y, alpha, f=fvec, solver=solver).ok(1e-8):
                 log.debug("combination %s consistent but fails verify; dropped", codes[k])
                 continue
-            sc = max(np.abs(y).max(initial=0), 1e-300)
-            if any(np.abs(y - z).max() <= SLACK * max(sc, np.abs(z).max(initial=0)) for z in ys):
+            # one solution per multipliers (they determine u), compared at their own scale: against
+            # y's, a body that moves far (u of 1e12) merged the three solutions of a node into one
+            lk = lam[k]
+            top = max(top, float(np.abs(lk).max(initial=0.0)))
+            if any(np.abs(lk - z).max() <= SLACK * max(np.abs(lk).max(initial=0.0), np.abs(z).max(initial=0.0))
+                   + 1e3 * np.finfo(float).eps * top for z in ys):
                 continue
-            ys.append(y)
+            ys.append(lk)
             Z = InactiveSets.from_states(codes[k])
             found.append(Solution.from_y(system, y, alpha, sets=Z))
     return found

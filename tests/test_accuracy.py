@@ -481,18 +481,24 @@ def test_points_are_shifted_onto_their_imposed_rows(monkeypatch):
 
 def test_enumeration_finds_the_solutions_of_ill_conditioned_systems(monkeypatch):
     """Enumeration keeps a consistent combination when its point verifies to 1e-8: on these
-    systems the point formed from the multipliers alone failed that (it found no solution at
-    all where the path has one); shifted onto its imposed rows it verifies, and it is the
-    path's."""
+    systems the point formed from the multipliers alone failed that at some alphas (it found no
+    solution at all where the path has one: 3 of these 90 on Debian 12, 3 others on Debian 13);
+    shifted onto its imposed rows it verifies, and every solution of the path is enumerated."""
     from cfcontact.enumerate import enumerate_solutions
 
-    for seed, alpha in ((12, 0.75), (20, 0.25)):
+    missed = 0
+    for seed in range(30):
         system = _ill_conditioned_lumped(seed)
         path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
-        (on_path,) = path.solutions_at(alpha)
-        (found,) = enumerate_solutions(system, alpha)
-        assert found.sets == on_path.sets
-        assert np.abs(found.y[system.n:] - on_path.y[system.n:]).max() <= 1e-8 * np.abs(on_path.y[system.n:]).max()
-        with monkeypatch.context() as mp:
-            mp.setattr(condensed, "CONSISTENT_RTOL", np.inf)
-            assert enumerate_solutions(system, alpha) == []
+        for alpha in (0.25, 0.5, 0.75):
+            on_path = path.solutions_at(alpha)
+            found = enumerate_solutions(system, alpha)
+            for x in on_path:
+                scale = np.abs(x.y[system.n:]).max()
+                assert any(e.sets == x.sets and np.abs(e.y[system.n:] - x.y[system.n:]).max() <= 1e-8 * scale
+                           for e in found), (seed, alpha)
+            with monkeypatch.context() as mp:
+                mp.setattr(condensed, "CONSISTENT_RTOL", np.inf)
+                plain = [e.sets for e in enumerate_solutions(system, alpha)]
+                missed += sum(x.sets not in plain for x in on_path)
+    assert missed >= 1

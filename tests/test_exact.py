@@ -418,6 +418,33 @@ def test_enumeration_at_a_fold_point_finds_the_touching_solutions(one_node_exact
         assert any(np.abs(s.y - y).max() <= 1e-9 for s in sols)
 
 
+def _node_beside_a_far_one(far, f_node):
+    """The one-node model (K1) with a second, decoupled node (K = I) loaded by (0, far) away from
+    its foundation, and the first node loaded by f_node."""
+    from cfcontact.system import ContactSystem
+
+    K = np.zeros((4, 4))
+    K[:2, :2], K[2:, 2:] = K1, np.eye(2)
+    N = np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    T = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
+    f = np.concatenate([f_node, [0.0, far]])
+    return ContactSystem.from_arrays(K, N, T, f, f, 2.5)
+
+
+def test_enumeration_beside_a_node_that_moves_far():
+    """Another node pulled 1e12 away from its foundation: the three solutions of the one-node
+    model at 24 degrees are still three (they were compared at the scale of u, and merged), and a
+    closed node with lam_n = -1 is no solution although rho |B u| of the far node (1e12) made its
+    indicators and verify's measure look like rounding (the force conditions are judged against
+    the forces)."""
+    d = np.radians(24.0)
+    sols = enumerate_solutions(_node_beside_a_far_one(-1e12, [np.cos(d), np.sin(d)]), 0.0)
+    assert sorted(s.states()[0] for s in sols) == ["open", "slip+", "stick"]
+    assert all(s.states()[1] == "open" for s in sols)
+    pulled = enumerate_solutions(_node_beside_a_far_one(-1e12, [0.3, -1.0]), 0.0)
+    assert [s.states() for s in pulled] == [["open", "open"]]
+
+
 def test_enumeration_refuses_large_problems():
     system = random_system(11, 0)
     with pytest.raises(cfcontact.EnumerationTooLarge, match=r"m = 11 contact nodes exceeds the limit max_nodes = 10"):
