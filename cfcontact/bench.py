@@ -208,7 +208,7 @@ def table_a(rows) -> str:
 
 
 # ====================================================================== Part B
-def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
+def worker_b(nx, ny, friction, petsc_options, verify_points=True, profile=False) -> dict:
     from petsc4py import PETSc
 
     for kv in petsc_options:
@@ -251,28 +251,18 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
     except Exception as exc:  # not MUMPS
         res["mumps_info"] = str(exc)
     dump()
-    prof = {}
-    import cProfile
-    import pstats
-
-    pr = cProfile.Profile()
     solves0 = solver.stats.linear_solves
     t0 = time.perf_counter()
-    pr.enable()
     path = cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=solver)
-    pr.disable()
-    t_path = time.perf_counter() - t0
-    stats = pstats.Stats(pr)
-    for (fname, line, func), (cc, nc, tt, ct, callers) in stats.stats.items():
-        prof[f"{os.path.basename(fname)}:{func}"] = prof.get(f"{os.path.basename(fname)}:{func}", 0.0) + tt
-    top = sorted(prof.items(), key=lambda kv: -kv[1])[:8]
+    t_path = time.perf_counter() - t0  # (no profiler running: it costs per Python call)
     st = solver.stats.as_dict()
+    top = _profiled_path(system, solver) if profile else None
     res.update(path_time=t_path, status=path.status, transitions=len(path.transitions), folds=len(path.folds),
                branches=len(path.branches), points=len(path.alphas), K_factorizations=st["factorizations"],
                linear_solves=st["linear_solves"], linear_solves_path=st["linear_solves"] - solves0,
                dense_factorizations=st["dense_factorizations"], dense_solves=st["dense_solves"],
                dense_updates=st.get("dense_updates", 0), true_corrections=st.get("true_corrections", 0),
-               profile_top_tottime=[[k, v] for k, v in top], rss_after_path_gib=peak_rss_gib(), stage="verify",
+               profile_top_tottime=top, rss_after_path_gib=peak_rss_gib(), stage="verify",
                events=[{"kind": e.kind, "alpha": e.alpha, "message": e.message} for e in path.events][:20])
     dump()
     t0 = time.perf_counter()
@@ -294,13 +284,34 @@ def worker_b(nx, ny, friction, petsc_options, verify_points=True) -> dict:
     return res
 
 
-def run_size(n_target, friction, timeout, petsc_options, log=print, ranks=1) -> dict:
+def _profiled_path(system, solver) -> list:
+    """The path traced again under cProfile (``--profile``): the 8 functions of most own time,
+    [name, seconds] (the timed run is not profiled)."""
+    import cProfile
+    import pstats
+
+    import cfcontact
+
+    pr = cProfile.Profile()
+    pr.enable()
+    cfcontact.trace_path(system, *dm.DEMO_ALPHA, method="exact", solver=solver)
+    pr.disable()
+    prof: dict = {}
+    for (fname, _line, func), (_cc, _nc, tt, _ct, _callers) in pstats.Stats(pr).stats.items():
+        key = f"{os.path.basename(fname)}:{func}"
+        prof[key] = prof.get(key, 0.0) + tt
+    return [[k, v] for k, v in sorted(prof.items(), key=lambda kv: -kv[1])[:8]]
+
+
+def run_size(n_target, friction, timeout, petsc_options, log=print, ranks=1, profile=False) -> dict:
     nx, ny, n_est = mesh_for(n_target)
     cmd = [sys.executable, "-m", "cfcontact.bench", "--worker-b", f"{nx},{ny},{friction!r}"]
     if ranks > 1:
         cmd = ["mpirun", "--allow-run-as-root", "-n", str(int(ranks))] + cmd
     for o in petsc_options:
         cmd += ["--petsc-option", o]
+    if profile:
+        cmd.append("--profile")
     log(f"  n ~ {n_target:.3g}: nx = {nx}, ny = {ny} (n = {n_est}, m = {nx}) ...")
     res = run_worker(cmd, {"n_target": n_target, "nx": nx, "ny": ny}, timeout, log, error_chars=3000)
     if res["returncode"] != 0:
@@ -439,6 +450,9 @@ def add_arguments(ap):
                                                        "(and compare its transitions with the serial run)")
     ap.add_argument("--petsc-option", action="append", default=[],
                     help="PETSc option for Part B, e.g. cfcontact_K_mat_mumps_icntl_7=5")
+    ap.add_argument("--profile", action="store_true",
+                    help="Part B: trace each serial path a second time under cProfile and report its 8 functions "
+                         "of most own time (the timed run is never profiled)")
     return ap
 
 
@@ -541,7 +555,7 @@ def run(args, argv_text="") -> int:
             if ranks < 1:
                 raise InputError(f"--mpi must be >= 1, got {ranks}")
             for s in sizes:
-                result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option))
+                result["part_b"].append(run_size(s, F, args.timeout, args.petsc_option, profile=args.profile))
                 save()
                 if ranks > 1:
                     row = run_size(s, F, args.timeout, args.petsc_option, ranks=ranks)
@@ -586,7 +600,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.worker_b:
         nx, ny, F = args.worker_b.split(",")
-        res = worker_b(int(nx), int(ny), float(F), args.petsc_option)
+        res = worker_b(int(nx), int(ny), float(F), args.petsc_option, profile=args.profile)
         from mpi4py import MPI
 
         if MPI.COMM_WORLD.rank == 0:

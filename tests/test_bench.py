@@ -17,7 +17,7 @@ def bench(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
     env = dict(os.environ)
     env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
-    proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", "--quick", "--skip-large",
+    proc = subprocess.run([sys.executable, "-m", "cfcontact", "bench", "--quick", "--skip-large", "--profile",
                            "--output", str(out)], capture_output=True, text=True, cwd=ROOT, env=env, timeout=1200)
     assert proc.returncode == 0, f"STDOUT:\n{proc.stdout}\nSTDERR:\n{proc.stderr}"
     with open(out / "bench.json") as fh:
@@ -71,6 +71,8 @@ def test_bench_part_b_fields(bench):
         assert r["K_factorizations"] == 1
         assert r["worst_residual"] <= 1e-8 and r["verified_points"] == r["points"]
         assert r["condensation"] in ("schur", "solves", "forward")
+        # --profile: the path traced again under cProfile (the timed run is not profiled)
+        assert r["profile_top_tottime"] and all(isinstance(k, str) and v >= 0 for k, v in r["profile_top_tottime"])
 
 
 @pytest.mark.slow
