@@ -46,6 +46,7 @@ from cfcontact.run import (
     resolve_saved,
     saved_material,
 )
+from cfcontact.solution_path import parameter_name
 
 EXIT_OK, EXIT_FAILURE, EXIT_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 #: the outputs are written, but the path did not reach the end of its range (its status is one of
@@ -262,8 +263,9 @@ def cmd_run(args):
         friction = p.get("parameter") == "friction"
         a0, a1 = (p["friction_start"], p["friction_end"]) if friction else (p["alpha_start"], p["alpha_end"])
         if not (min(a0, a1) <= args.stop_at_alpha <= max(a0, a1)) or args.stop_at_alpha == a0:
-            raise CaseError(f"--stop-at-alpha {args.stop_at_alpha:g}: the path runs from {'F' if friction else 'alpha'} "
-                            f"= {a0:g} to {a1:g}; give a value after its start, within that range")
+            raise CaseError(f"--stop-at-alpha {args.stop_at_alpha:g}: the path runs from "
+                            f"{parameter_name(p.get('parameter'))} = {a0:g} to {a1:g}; give a value after its start, "
+                            f"within that range")
     check_size(case, allow_large=args.allow_large)
     for text in case.get("_warnings", ()):
         _warn(args, text)

@@ -45,7 +45,8 @@ from petsc4py import PETSc
 from cfcontact import linalg, native
 from cfcontact.compat_petsc import factor_schur_complement, factor_set_schur_is
 from cfcontact.errors import InputError, SingularSystemError
-from cfcontact.ssnm import InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_key
+from cfcontact.ssnm import (InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_codes,
+                            canonical_key)
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -1448,10 +1449,8 @@ class CondensedSolver:
         return linalg.concat_ranks(self.comm, u_loc)
 
     def imposed_of_sets(self, Z: InactiveSets) -> np.ndarray:
-        """:meth:`imposed_rows` of the state of the sets Z (a closed node with F = 0 is free)."""
-        codes = Z.state_codes()
-        codes[(codes != _OPEN) & self._F0] = _SLIP_P
-        return self.imposed_rows(codes)
+        """:meth:`imposed_rows` of the state of the sets Z (in its canonical codes)."""
+        return self.imposed_rows(canonical_codes(Z, self.F, self.no_tangent))
 
     def _consistent(self, X: np.ndarray, lams: np.ndarray, imposed, points=None) -> np.ndarray:
         """The displacements X (local rows, one column per point of multipliers lams; 2m x k)
@@ -1483,20 +1482,23 @@ class CondensedSolver:
                 R[:m] -= self.system.gap[:, None]
             return R
 
-        def errors(R, cols, rows):  # rho |R| on the imposed rows, the free rows' side violations
+        def size_of(R, cols):  # the points' size as (1)-(3) are measured: multipliers and rho B u
             size = np.maximum(np.abs(lams[:, cols]).max(axis=0, initial=0.0), rho * np.abs(R).max(axis=0, initial=0.0))
+            return np.maximum(size, 1e-300)
+
+        def errors(R, cols, rows):  # rho |R| on the imposed rows, the free rows' side violations
             res = rho * np.abs(np.where(rows, R, 0.0)).max(axis=0, initial=0.0)
             wrong = rho * np.where(rows, 0.0, np.maximum(side[:, cols] * R, 0.0)).max(axis=0, initial=0.0)
-            return res, wrong, np.maximum(size, 1e-300)
+            return res, wrong
 
         R = rows_of(X)
+        size = size_of(R, np.arange(k))
         # the side a free row must keep: N u - g <= 0, and at a node with a contact force (as
         # verify sees one: above 1e-8 of the point) -sign(lam_t) T u <= 0 (0: no condition)
-        size = np.maximum(np.abs(lams).max(axis=0, initial=0.0), rho * np.abs(R).max(axis=0, initial=0.0))
         side = np.vstack([np.ones((m, k)), np.where(lams[:m] > 1e-8 * size, -np.sign(lams[m:]), 0.0)])
         if points is not None:
             side *= np.asarray(points, dtype=bool)
-        res, wrong, size = errors(R, np.arange(k), imposed)
+        res, wrong = errors(R, np.arange(k), imposed)
         err = np.maximum(res, wrong) / size
         todo = ((err > CONSISTENT_RTOL) & (np.maximum(res, wrong) <= CONSISTENT_MAX_RTOL * size)).nonzero()[0]
         if not todo.size:
@@ -1515,7 +1517,9 @@ class CondensedSolver:
             D[np.ix_(I, cs)] = sla.lu_solve(lu, R[np.ix_(I, todo[cs])], check_finite=False)
         BtD = self.B_local.T @ D
         Y = X[:, todo] - self._ksolve_dense(np.asfortranarray(BtD))
-        res1, wrong1, size1 = errors(rows_of(Y), todo, rows)
+        R1 = rows_of(Y)
+        res1, wrong1 = errors(R1, todo, rows)
+        size1 = size_of(R1, todo)
         # the shift moves (1) by B_I^T D: its backward error as verify measures it, against
         # ||K|| |u| + |B^T lam| (|f| left out: an upper bound)
         amax = self._allreduce(np.vstack([np.abs(BtD).max(axis=0, initial=0.0),

@@ -62,7 +62,7 @@ from cfcontact.errors import ConvergenceError, InputError, SingularSystemError, 
 from cfcontact.jsonio import jsonable
 from cfcontact.options import ALPHA_LIMIT, TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
-from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, indicators
+from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, canonical_codes, indicators
 from cfcontact.start import START_RHO_FACTORS, check_request, resume_parts, start_point
 from cfcontact.stepper import StartProgress, Stepper, check_monitor, stop_only
 from cfcontact.system import ContactSystem
@@ -177,19 +177,6 @@ for _st, _k, _ind, _to in ((OPEN, 0, _A, -1), (STICK, 0, _BP, SLIP_P), (STICK, 0
 # membership (I_nu, I_t+, I_t-) of each state code; an open node is tangentially free (I_t+)
 _SETS_OF_CODE = np.array([[True, True, False], [False, False, False], [False, True, False], [False, False, True]])
 _CODE_SETS = np.ascontiguousarray(_SETS_OF_CODE.T)  # (nu, tp, tm) rows by code: 3 x 4
-
-
-def canonical_codes(sets: InactiveSets, friction, no_tangent=None) -> np.ndarray:
-    """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices: an open
-    node is tangentially free, a node with F = 0 is open or free (coded slip+; its stick state
-    gives the same solution when consistent, lam_t = 0), and a node without tangential unknown
-    (``no_tangent``) is open or closed (coded stick, lam_t = 0)."""
-    F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
-    codes = sets.state_codes().astype(np.int8)  # tp & tm -> 2 (slip+)
-    codes = np.where((codes != OPEN) & (F == 0.0), SLIP_P, codes)
-    if no_tangent is not None:
-        codes = np.where((codes != OPEN) & np.asarray(no_tangent, dtype=bool), STICK, codes)
-    return codes.astype(np.int8)
 
 
 def _canon(system, sets) -> np.ndarray:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from cfcontact.jsonio import jsonable
+from cfcontact.solution_path import parameter_name
 from cfcontact.ssnm import verify
 
 
@@ -186,7 +187,7 @@ def turned_back_text(reach, start, parameter="alpha", unverified=False) -> str:
     ``parameter``: the path's ("alpha", or "friction" for a path in F); ``unverified``: it has
     transitions the seed method could not verify (:func:`unverified_text`), so the turn may be its
     fold rule's and not the problem's."""
-    par = "F" if parameter == "friction" else "alpha"
+    par = parameter_name(parameter)
     most = "at most" if reach >= start else "at least"  # (a path traced towards smaller values)
     head = f"the path turned back: it reaches {par} = {reach:.10g} {most} and left its range at {par} = {start:g}; "
     if unverified:
@@ -220,7 +221,7 @@ def format_report(rep, source) -> str:
     """The text of ``cfcontact info``: a :func:`path_report` of the saved path ``source``."""
     friction = rep.get("parameter") == "friction"
     par = "F (friction)" if friction else "alpha"
-    x = "F" if friction else "alpha"  # the path's parameter in the lines below
+    x = parameter_name(rep.get("parameter"))  # the path's parameter in the lines below
     lines = [f"saved path: {source}",
              f"method {rep['method']}, status {rep['status']}, n = {rep['n']} DOFs, m = {rep['m']} contact nodes, "
              f"{par} {rep['alpha_start']:g} -> {rep['alpha_end']:g}"

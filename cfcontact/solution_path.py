@@ -50,6 +50,12 @@ FORMAT_VERSION = 2
 SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
 
 
+def parameter_name(parameter: str) -> str:
+    """A path parameter's name in messages and pictures: "alpha", or "F" for "friction" (a path
+    over the friction coefficient)."""
+    return "F" if parameter == "friction" else "alpha"
+
+
 class PathPoint:
     """An accepted point of the path (what the callback sees): its index, alpha, branch and the
     live path.  ``solution`` (a :class:`~cfcontact.ssnm.Solution`) is formed when first asked
@@ -206,8 +212,8 @@ class SolutionPath:
 
     @property
     def parameter_name(self) -> str:
-        """The parameter's name in messages and pictures: "alpha", or "F" for a path over the friction."""
-        return "F" if self.parameter == "friction" else "alpha"
+        """The parameter's name in messages and pictures (:func:`parameter_name`)."""
+        return parameter_name(self.parameter)
 
     def __init__(self, n, m, N, T, friction, rho, method, alpha_start, alpha_end, options=None,
                  geometry: Optional[ContactGeometry] = None, gap=None):

@@ -185,6 +185,20 @@ def inactive_sets(system: ContactSystem, y) -> InactiveSets:
     return InactiveSets(a < 0, bp > 0, bm < 0)
 
 
+def canonical_codes(sets: InactiveSets, friction, no_tangent=None) -> np.ndarray:
+    """Per-node state codes (0 open, 1 stick, 2 slip+, 3 slip-) with the canonical choices: an open
+    node is tangentially free, a node with F = 0 is open or free (coded slip+; its stick state
+    gives the same solution when consistent, lam_t = 0), and a node without tangential unknown
+    (``no_tangent``) is open or closed (coded stick, lam_t = 0)."""
+    F = np.broadcast_to(np.asarray(friction, dtype=float), (sets.m,))
+    codes = sets.state_codes()  # tp & tm -> 2 (slip+)
+    closed = codes != 0
+    codes = np.where(closed & (F == 0.0), 2, codes)
+    if no_tangent is not None:
+        codes = np.where(closed & np.asarray(no_tangent, dtype=bool), 1, codes)
+    return codes.astype(np.int8)
+
+
 # ----------------------------------------------------------------------- results
 @dataclass(eq=False)
 class Solution:
