@@ -1623,9 +1623,16 @@ def _columns_converged(csizes, unapplied, Lc) -> bool:
 
 
 def _s_times(solver, X):
-    """S X, reading only the columns of S (rows of S^T) where X has non-zero rows."""
+    """S X, reading only the columns of S (rows of S^T) where X has non-zero rows, or, for most of
+    them, all of S -- its upper triangle only where S is exactly symmetric (S^T is S itself) and X
+    has two columns (:func:`cfcontact.native.symv2`: Part B's path at n = 1e6 spent a third of
+    its time in these products, memory-bound)."""
     nz = (X != 0.0).any(axis=1).nonzero()[0]
     if 4 * nz.size >= X.shape[0]:
+        if solver.St is solver.S and X.ndim == 2 and X.shape[1] == 2 and X.shape[0] >= COLUMNWISE_MIN_ROWS:
+            Y = native.symv2(solver.S, X)
+            if Y is not None:
+                return Y
         return _times(solver.S, X)
     return _rows_t_times(solver.St, nz, X[nz])
 
@@ -1960,6 +1967,18 @@ UPDATE_REFINE_STEPS = 6
 #: updated solve can be 1e6 times less accurate than a fresh LU, and its wide rounding bounds
 #: would merge separate transitions into one degenerate point (a different path).
 UPDATE_ERR_RTOL = 1e-10
+#: The rebase rule's cost model (:meth:`_Updater.branch_data`), in seconds of this project's
+#: two-core machine (one BLAS thread), fitted to per-branch times of Part B's path (n = 1e6,
+#: m = 864): a branch whose sets differ from the kept base at d nodes costs about
+#: d m UPDATE_NODE_COST more than one solved on the base itself (28-42 us per node there:
+#: Woodbury's products with D's rows of S and Zc in each of its three solves), and refactoring
+#: a reduced system of size k costs (2/3) k^3 UPDATE_FLOP_COST + UPDATE_REBASE_COST (LAPACK's
+#: getrf at 36 GFlop/s: 0.064 s at k = 1514, 0.30 s at k = 2554).  Only their ratio matters,
+#: and not finely: Part B's path took the same time (10.0-10.5 s against 12.2-12.5 s with a
+#: refactorization every ~120 changed nodes) with UPDATE_NODE_COST anywhere from 5e-9 to 4.5e-8.
+UPDATE_NODE_COST = 3e-8
+UPDATE_FLOP_COST = 2.8e-11
+UPDATE_REBASE_COST = 2e-3
 
 
 class _Updater:
@@ -1980,8 +1999,11 @@ class _Updater:
     columns Zc of every node that has differed from Z0 and the products S[rows of those nodes] Zc
     are kept too, so a branch costs one solve with the kept LU, O(m |D|) for V^T y and O(|D|^3)
     for C -- O(m^2) per branch instead of the O(m^3) of a fresh factorization.  The base is
-    refactored at the branch being solved when |D| would exceed ``max_rank`` (balancing the
-    refactorization against C: (2m)^(3/4) or so), or when a step of iterative refinement against
+    refactored at the branch being solved when what the branches since the last refactorization
+    paid for their updates (O(m |D|) each, growing as D does) has reached what a refactorization
+    costs (O(k^3)): the rent-or-buy rule, which for a D that grows steadily is the best cycle
+    length (the cost model: UPDATE_NODE_COST, UPDATE_FLOP_COST); also when |D| would exceed
+    ``max_rank`` (the kept columns' memory), or when a step of iterative refinement against
     M(Z) itself shows that the updates lost accuracy.  Every solve is refined against M(Z) (its
     rows are those of S and unit rows) until a correction has fallen below 1e-3 of the first (two
     steps as a rule: the second measures the contraction, which is what reveals a near-singular
@@ -1991,9 +2013,11 @@ class _Updater:
     Cost per branch: one solve with the kept LU for the values and rates (with the columns of
     nodes new to the cache), a product with S, and per refinement step one more solve and one
     more product (none for a last correction at rounding level); products and solves with the two columns go column
-    by column (:data:`COLUMNWISE_MIN_ROWS`).  (BLAS' symv on a symmetric S reads half of it and
-    made Part B's path 4 % faster, but its rounding left points 3x farther from (1)-(3) on the
-    strips: 7.5e-10 instead of 2.3e-10 at m = 1000, F = 30.)"""
+    by column (:data:`COLUMNWISE_MIN_ROWS`); the products with a symmetric S read its upper
+    triangle only (:func:`_s_times`).  (BLAS' symv, a column at a time, made Part B's path only
+    4 % faster, and its rounding left points 3x farther from (1)-(3) on the strips: 7.5e-10
+    instead of 2.3e-10 at m = 1000, F = 30; the compiled kernel sums as accurately as the full
+    product.)"""
 
     def __init__(self, solver, max_rank: Optional[int] = None):
         self.s = solver
@@ -2004,6 +2028,7 @@ class _Updater:
         self.max_rank = int(max_rank) if max_rank else max(4, min(400, int(0.45 * (2 * m) ** 0.75)))
         self.rho = solver.system.rho
         self.codes0 = None
+        self.paid = self.rebase_cost = 0.0  # updates' cost since the last refactorization, and its cost
         self.refactorizations = 0
         self.updates = 0
         self.unapplied = 0  # last refinement corrections measured, not applied (UPDATE_UNAPPLIED_RTOL)
@@ -2029,6 +2054,8 @@ class _Updater:
         self.ZcT = np.empty((16, 2 * self.m))
         self.SR = np.empty((16, 2 * self.m))  # rows 2q, 2q + 1: S[j], S[m + j] (contiguous: no gather per branch)
         self.SZ = np.empty((16, 16))  # rows 2q, 2q + 1: S[j] Zc, S[m + j] Zc
+        k = self.entry0[0].shape[0]
+        self.paid, self.rebase_cost = 0.0, 2.0 / 3.0 * k ** 3 * UPDATE_FLOP_COST + UPDATE_REBASE_COST
         self.refactorizations += 1
 
     def _base_solve(self, B):
@@ -2139,6 +2166,10 @@ class _Updater:
             self.reasons["rank"] = self.reasons.get("rank", 0) + 1
             self.rebase(codes)
             D = D[:0]
+        elif D.size and self.paid >= self.rebase_cost:  # the updates have cost a refactorization
+            self.reasons["cost"] = self.reasons.get("cost", 0) + 1
+            self.rebase(codes)
+            D = D[:0]
         B = _scaled_rhs(types, W, self.rho)
         for attempt in range(2):
             y = self._ensure(D, B)
@@ -2234,6 +2265,8 @@ class _Updater:
         s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
         s.stats.dense_updates += 1
         self.updates += 1
+        d = D.size
+        self.paid += d * self.m * UPDATE_NODE_COST + 2.0 / 3.0 * (2 * d) ** 3 * UPDATE_FLOP_COST
         G = s._ind(L, W, SL, imposed)
         if true is not None and (more or s.needs_true(W, G, L)):  # the equations' residual from solves with K
             L, G = s.against_K(W, L, G, imposed, true,

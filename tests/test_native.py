@@ -187,3 +187,34 @@ def test_two_column_product_with_gathered_rows(rows, cols, picked):
     assert native.gemv2t(A, idx, np.column_stack([X, X[:, :1]])) is None
     with pytest.raises(IndexError, match="outside"):
         native.gemv2t(A, np.append(idx, rows), np.vstack([X, X[:1]]))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 7, 8, 13, 401, 1730])
+def test_two_column_symmetric_product(n):
+    """symv2 (A X from A's upper triangle only) against exact products: sizes that are not
+    multiples of the kernel's four-row blocks (a scalar last block, rows whose segment right of
+    the block starts unaligned), zero rows in X (the multipliers of open nodes), entries over 10
+    decades; as accurate as gemv2.  The lower triangle is never read (NaN there changes nothing).
+    Other layouts or column counts: None (the caller multiplies)."""
+    rng = np.random.default_rng(n)
+    G = rng.standard_normal((n, n)) * np.exp(rng.uniform(-12, 12, (n, n)))
+    A = np.ascontiguousarray(np.triu(G) + np.triu(G, 1).T)
+    X = rng.standard_normal((n, 2))
+    X[rng.random(n) < 0.3] = 0.0
+    Y = native.symv2(A, X)
+    assert Y is not None and Y.shape == (n, 2)
+    bound = np.abs(A) @ np.abs(X)
+    rows = range(0, n, max(1, n // 25))
+    exact = np.array([[float(sum(Fraction(A[i, j]) * Fraction(X[j, k]) for j in range(n))) for k in range(2)]
+                      for i in rows])
+    assert np.all(np.abs(Y[list(rows)] - exact) <= 4 * n * 1.2e-16 * bound[list(rows)])
+    assert np.all(np.abs(Y - A @ X) <= 2e-15 * bound)
+    if n >= 401:  # as accurate as the full product (four partial sums, not one chain per entry)
+        err = lambda Z: np.max(np.abs(Z[list(rows)] - exact) / np.maximum(bound[list(rows)], 1e-300))
+        assert err(Y) <= 2.0 * err(native.gemv2(A, X)) + 1e-17
+    lower = A.copy()
+    lower[np.tril_indices(n, -1)] = np.nan
+    assert np.array_equal(native.symv2(lower, X), Y)
+    assert native.symv2(np.asfortranarray(A), X) is None or n == 1
+    assert native.symv2(A, np.column_stack([X, X[:, :1]])) is None
+    assert native.symv2(A[:, :-1].copy(), X[:-1]) is None or n == 1
