@@ -1976,6 +1976,8 @@ UPDATE_ERR_RTOL = 1e-10
 #: getrf at 36 GFlop/s: 0.064 s at k = 1514, 0.30 s at k = 2554).  Only their ratio matters,
 #: and not finely: Part B's path took the same time (10.0-10.5 s against 12.2-12.5 s with a
 #: refactorization every ~120 changed nodes) with UPDATE_NODE_COST anywhere from 5e-9 to 4.5e-8.
+#: A model, not a clock: the renewals fall on the same branches in every run and on every MPI
+#: rank (which all trace the replicated dense path).
 UPDATE_NODE_COST = 3e-8
 UPDATE_FLOP_COST = 2.8e-11
 UPDATE_REBASE_COST = 2e-3

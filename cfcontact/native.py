@@ -327,15 +327,6 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
         const v4d vb0 = {b0, b0, b0, b0}, vb1 = {b1, b1, b1, b1}, vb2 = {b2, b2, b2, b2}, vb3 = {b3, b3, b3, b3};
         int64_t j = i0 + 4;
         double t[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-        for (; j < n && (j & 3); j++) { /* to a multiple of four (aligned y) */
-            double c0 = r0[j], c1 = r1[j], c2 = r2[j], c3 = r3[j];
-            t[0] += c0 * x0[j]; t[1] += c0 * x1[j];
-            t[2] += c1 * x0[j]; t[3] += c1 * x1[j];
-            t[4] += c2 * x0[j]; t[5] += c2 * x1[j];
-            t[6] += c3 * x0[j]; t[7] += c3 * x1[j];
-            y0[j] = (((y0[j] + c0 * a0) + c1 * a1) + c2 * a2) + c3 * a3;
-            y1[j] = (((y1[j] + c0 * b0) + c1 * b1) + c2 * b2) + c3 * b3;
-        }
         for (; j + 4 <= n; j += 4) {
             __builtin_prefetch(r0 + j + PF);
             __builtin_prefetch(r1 + j + PF);
@@ -352,7 +343,7 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
             *p0 = (((*p0 + c0 * va0) + c1 * va1) + c2 * va2) + c3 * va3;
             *p1 = (((*p1 + c0 * vb0) + c1 * vb1) + c2 * vb2) + c3 * vb3;
         }
-        for (; j < n; j++) {
+        for (; j < n; j++) { /* the scalar tail */
             double c0 = r0[j], c1 = r1[j], c2 = r2[j], c3 = r3[j];
             t[0] += c0 * x0[j]; t[1] += c0 * x1[j];
             t[2] += c1 * x0[j]; t[3] += c1 * x1[j];
