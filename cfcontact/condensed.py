@@ -2041,8 +2041,12 @@ class _Updater:
     def _types(self, codes):
         return _node_types(self.s, codes)
 
-    def rebase(self, codes):
-        """Factor M(codes) (its reduced system) and start over with it as the base."""
+    def rebase(self, codes, reason=None):
+        """Factor M(codes) (its reduced system) and start over with it as the base; ``reason``
+        (why the base was renewed) is counted in ``reasons``.  Returns the nodes at which codes
+        now differ from the base: none."""
+        if reason is not None:
+            self.reasons[reason] = self.reasons.get(reason, 0) + 1
         s = self.s
         codes = np.asarray(codes, dtype=np.int8)
         self.entry0 = s._factor_codes(b"updater-base", codes)
@@ -2059,6 +2063,7 @@ class _Updater:
         k = self.entry0[0].shape[0]
         self.paid, self.rebase_cost = 0.0, 2.0 / 3.0 * k ** 3 * UPDATE_FLOP_COST + UPDATE_REBASE_COST
         self.refactorizations += 1
+        return np.zeros(0, dtype=np.intp)
 
     def _base_solve(self, B):
         """M(Z0)^-1 B (2m x c), the S rows of M(Z0) scaled by rho."""
@@ -2165,13 +2170,9 @@ class _Updater:
         closed0, t_s0, coef0 = self.types0
         D = ((closed != closed0) | (t_s != t_s0) | (coef != coef0)).nonzero()[0]
         if D.size > self.max_rank or len(self.nodes) + np.setdiff1d(D, self.nodes).size > 2 * self.max_rank:
-            self.reasons["rank"] = self.reasons.get("rank", 0) + 1
-            self.rebase(codes)
-            D = D[:0]
+            D = self.rebase(codes, "rank")
         elif D.size and self.paid >= self.rebase_cost:  # the updates have cost a refactorization
-            self.reasons["cost"] = self.reasons.get("cost", 0) + 1
-            self.rebase(codes)
-            D = D[:0]
+            D = self.rebase(codes, "cost")
         B = _scaled_rhs(types, W, self.rho)
         for attempt in range(2):
             y = self._ensure(D, B)
@@ -2179,9 +2180,7 @@ class _Updater:
             L = None if solve is None else solve(B, y)
             if L is None:  # M(Z) singular (C singular with a regular base), or the updates broke down
                 if attempt == 0 and D.size:
-                    self.reasons["singular"] = self.reasons.get("singular", 0) + 1
-                    self.rebase(codes)
-                    D = D[:0]
+                    D = self.rebase(codes, "singular")
                     continue
                 raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for "
                                           f"{s._describe_codes(codes)}")
@@ -2261,9 +2260,7 @@ class _Updater:
                 reason = "error"
             if ok or attempt == 1 or not D.size:
                 break
-            self.reasons[reason] = self.reasons.get(reason, 0) + 1
-            self.rebase(codes)  # the updates lost accuracy: start over from this branch
-            D = D[:0]
+            D = self.rebase(codes, reason)  # the updates lost accuracy: start over from this branch
         s.stats.dense_solves += (1 + len(sizes)) * W.shape[1]
         s.stats.dense_updates += 1
         self.updates += 1

@@ -288,33 +288,12 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
     for (int64_t i0 = 0; i0 < n; i0 += 4) {
         double *restrict y0 = work + ((i0 >> 2) & 3) * 2 * n, *restrict y1 = y0 + n;
         int nb = n - i0 < 4 ? (int)(n - i0) : 4;
-        if (nb < 4) { /* the last rows: scalar */
-            for (int a = 0; a < nb; a++) {
-                const double *r = A + (i0 + a) * lda;
-                double s0 = 0.0, s1 = 0.0;
-                for (int b = a; b < nb; b++) {
-                    s0 += r[i0 + b] * x0[i0 + b];
-                    s1 += r[i0 + b] * x1[i0 + b];
-                    if (b > a) {
-                        Y0[i0 + b] += r[i0 + b] * x0[i0 + a];
-                        Y1[i0 + b] += r[i0 + b] * x1[i0 + a];
-                    }
-                }
-                Y0[i0 + a] += s0;
-                Y1[i0 + a] += s1;
-            }
-            break;
-        }
-        const double *restrict r0 = A + i0 * lda, *restrict r1 = r0 + lda, *restrict r2 = r1 + lda,
-                     *restrict r3 = r2 + lda;
-        const double a0 = x0[i0], a1 = x0[i0 + 1], a2 = x0[i0 + 2], a3 = x0[i0 + 3];
-        const double b0 = x1[i0], b1 = x1[i0 + 1], b2 = x1[i0 + 2], b3 = x1[i0 + 3];
-        /* the 4 x 4 diagonal block (upper triangle) */
+        /* the nb x nb diagonal block (upper triangle) */
         double d0[4] = {0, 0, 0, 0}, d1[4] = {0, 0, 0, 0};
-        const double *rr[4] = {r0, r1, r2, r3};
-        for (int a = 0; a < 4; a++)
-            for (int b = a; b < 4; b++) {
-                double v = rr[a][i0 + b];
+        for (int a = 0; a < nb; a++) {
+            const double *r = A + (i0 + a) * lda;
+            for (int b = a; b < nb; b++) {
+                double v = r[i0 + b];
                 d0[a] += v * x0[i0 + b];
                 d1[a] += v * x1[i0 + b];
                 if (b > a) {
@@ -322,6 +301,18 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
                     d1[b] += v * x1[i0 + a];
                 }
             }
+        }
+        if (nb < 4) { /* the last rows: nothing right of their block */
+            for (int k = 0; k < nb; k++) {
+                Y0[i0 + k] += d0[k];
+                Y1[i0 + k] += d1[k];
+            }
+            break;
+        }
+        const double *restrict r0 = A + i0 * lda, *restrict r1 = r0 + lda, *restrict r2 = r1 + lda,
+                     *restrict r3 = r2 + lda;
+        const double a0 = x0[i0], a1 = x0[i0 + 1], a2 = x0[i0 + 2], a3 = x0[i0 + 3];
+        const double b0 = x1[i0], b1 = x1[i0 + 1], b2 = x1[i0 + 2], b3 = x1[i0 + 3];
         v4d z = {0.0, 0.0, 0.0, 0.0}, s00 = z, s01 = z, s10 = z, s11 = z, s20 = z, s21 = z, s30 = z, s31 = z;
         const v4d va0 = {a0, a0, a0, a0}, va1 = {a1, a1, a1, a1}, va2 = {a2, a2, a2, a2}, va3 = {a3, a3, a3, a3};
         const v4d vb0 = {b0, b0, b0, b0}, vb1 = {b1, b1, b1, b1}, vb2 = {b2, b2, b2, b2}, vb3 = {b3, b3, b3, b3};
