@@ -147,9 +147,16 @@ POLISH_SOLVE_RTOL = 1e-16
 #: with cond(K) = 8e7 (rho |S| = 2e8) had its points 2e-8 to 5e-8 from (1)-(3) with multipliers
 #: right to 2e-11 (and the exact solution rounded to doubles verifies to 1e-16).
 CONSISTENT_RTOL = 1e-10
-#: ... only residuals up to this are rounding to be removed; larger ones are left for verify to
-#: report (the shift must not hide an error of the multipliers).
+#: ... only residuals up to this are rounding to be removed, or up to what lam's rounding can make
+#: of them: CONSISTENT_LAM_ULPS units of it times rho max S_ii (the rows move by S times lam's
+#: error; weighed by rho as (1)-(3) are measured); larger ones are left for verify to report (the
+#: shift must not hide an error of the multipliers).  On bodies of very different stiffness rho
+#: is the stiff side's and S the soft side's compliance: rho max S_ii is about the stiffness ratio
+#: r, and the gaps of exact multipliers rounded to doubles are off by r times their rounding (two
+#: 12 x 4 blocks at F = 0.6: 2e-6 of the point at r = 3e7, 5e-4 at r = 1e10, where the seed
+#: method's full solves give 2e-13; shifted, 2.2e-11).
 CONSISTENT_MAX_RTOL = 1e-6
+CONSISTENT_LAM_ULPS = 1e4
 #: ... and only states with at most this many imposed rows (one dense factorization of S's block
 #: per state: 0.15 s at 2000 rows).
 CONSISTENT_MAX_ROWS = 2000
@@ -1304,6 +1311,11 @@ class CondensedSolver:
         return rows
 
     @property
+    def s_diag_max(self) -> float:
+        """The largest entry of S (S is positive semidefinite: on its diagonal), 0 when m = 0."""
+        return float(np.diagonal(self.S).max(initial=0.0))
+
+    @property
     def use_updates(self) -> bool:
         """Are the exact method's branches solved by updates of one kept factorization
         (:class:`_Updater`)?  ``options.updates``: True, False or None (default: when 2m >=
@@ -1458,7 +1470,8 @@ class CondensedSolver:
         column, or 2m x k).  The error of a column: the largest of rho |B_I u - g_I| over those
         rows and of the free rows' side violations (an open node's gap N u - g > 0, a slipping
         node's slip T u against lam_t's sign), relative to the point's size as (1)-(3) are
-        measured.  Where it exceeds CONSISTENT_RTOL (and both are at most CONSISTENT_MAX_RTOL),
+        measured.  Where it exceeds CONSISTENT_RTOL (and both are within what lam's rounding can
+        make of them, see CONSISTENT_MAX_RTOL),
         u -= K^-1 B_I^T S_II^-1 (B_I u - g_I), I the imposed rows and the free rows as close to
         their bound as that error (at a transition point the vanishing row of the branch's new
         state: a node that begins to slip has T u = 0 there, and u's rounding gives it either
@@ -1500,7 +1513,8 @@ class CondensedSolver:
             side *= np.asarray(points, dtype=bool)
         res, wrong = errors(R, np.arange(k), imposed)
         err = np.maximum(res, wrong) / size
-        todo = ((err > CONSISTENT_RTOL) & (np.maximum(res, wrong) <= CONSISTENT_MAX_RTOL * size)).nonzero()[0]
+        cap = max(CONSISTENT_MAX_RTOL, CONSISTENT_LAM_ULPS * np.finfo(float).eps * rho * self.s_diag_max)
+        todo = ((err > CONSISTENT_RTOL) & (np.maximum(res, wrong) <= cap * size)).nonzero()[0]
         if not todo.size:
             return X
         rows = imposed[:, todo] | ((side[:, todo] != 0.0) & (rho * np.abs(R[:, todo]) <= 2.0 * err[todo] * size[todo]))
