@@ -366,9 +366,10 @@ class _CondensedData:
         W[:, 1] = self.dw
         true = None
         if self.loads is not None:  # (the loads of W's columns: f(alpha) and the rate f2 - f1)
-            f1, f2 = self.loads
-            true = ((self.path_loads([alpha], rates=1) if self.path_loads else
-                     (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1]))), (True, False))
+            f1, f2, own = self.loads[0], self.loads[1], self.path_loads
+            # (formed only if the branch is corrected against K: most never are)
+            true = ((lambda: own([alpha], rates=1)) if own else
+                    (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1])), (True, False))
         L, G, Eg = self.solver.branch_data(W, key, codes, refine=True, true=true)
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
