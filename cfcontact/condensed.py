@@ -1624,16 +1624,17 @@ UPDATE_COLUMN_RTOL = 1e-10
 UPDATE_COLUMN_FLOOR = 1e-8
 
 
-def _columns_converged(csizes, unapplied, Lc) -> bool:
-    """Is every column's estimated error within UPDATE_COLUMN_RTOL of its size?  ``csizes``: the
-    refinement's corrections' sizes per column, step by step; ``unapplied``: the last one was
-    only measured (it is then the error); ``Lc``: the columns' sizes."""
+def _columns_converged(csizes, unapplied, Lc, rtol=None) -> bool:
+    """Is every column's estimated error within ``rtol`` (default UPDATE_COLUMN_RTOL) of its size?
+    ``csizes``: the refinement's corrections' sizes per column, step by step; ``unapplied``: the
+    last one is taken as the error (measured, or applied after a first solve); ``Lc``: the
+    columns' sizes."""
     last = csizes[-1]
     if not unapplied and len(csizes) > 1:
         prev = csizes[-2]
         last = last * np.divide(last, prev, out=np.ones_like(last), where=prev > 0.0)
     scale = np.maximum(Lc, UPDATE_COLUMN_FLOOR * float(Lc.max(initial=0.0)))
-    return bool((last <= UPDATE_COLUMN_RTOL * scale).all())
+    return bool((last <= (UPDATE_COLUMN_RTOL if rtol is None else rtol) * scale).all())
 
 
 def _s_times(solver, X):
@@ -1970,6 +1971,16 @@ SSNM_UPDATE_MIN_SIZE = 1000
 #: converged correction can still be 3e-8 of lam, and leaving those out put 35 points of the
 #: m = 500 strip's path above 1e-9 (a residual of 7.3e-9).
 UPDATE_UNAPPLIED_RTOL = 1e-15
+#: An updated branch's first solve is taken with one applied correction when that correction is
+#: within this share of each column's size: since the base solves the branch's data with its own
+#: right-hand side, the first correction of Part B's updated solves is 6.4e-11 of the values and
+#: 5.4e-13 of the rates at n = 1e6 (medians), and a second one, measured, is then at the rounding
+#: floor: at most 9.4e-16 of the multipliers where the first was up to 1e-8 (1649 branches), 4e-15
+#: beyond (6).  Larger first corrections are followed by measured ones, the refinement's
+#: contraction (a poor first solve: 5 % off on a strip at F = 30).
+UPDATE_FIRST_RTOL = 1e-9
+#: ... and what such a corrected solve is taken to be off by, in units of its columns' rounding.
+UPDATE_LEFT_ULPS = 8.0
 #: Refactor the kept system when a refinement step changes the multipliers by more than this
 #: (relative): the updates have lost accuracy.
 UPDATE_REFINE_RTOL = 1e-8
@@ -2048,6 +2059,7 @@ class _Updater:
         self.refactorizations = 0
         self.updates = 0
         self.unapplied = 0  # last refinement corrections measured, not applied (UPDATE_UNAPPLIED_RTOL)
+        self.first_accepted = 0  # branches whose first solve needed one correction only (UPDATE_FIRST_RTOL)
         self.refined_on = 0  # branches whose columns had not all converged, refined on to the floor
         self.reasons = {}
 
@@ -2132,7 +2144,7 @@ class _Updater:
         """B -> M(Z)^-1 B by the Woodbury identity on the kept base (C factored once), or None when
         C is singular."""
         if not D.size:
-            return lambda B, y=None: self._base_solve(B) if y is None else y
+            return lambda B, y=None, shift=None: self._base_solve(B) if y is None else y
         q = np.array([self.pos[int(j)] for j in D])
         cols = np.empty(2 * q.size, dtype=np.intp)
         cols[0::2], cols[1::2] = 2 * q, 2 * q + 1
@@ -2157,13 +2169,16 @@ class _Updater:
                 SD[0] = SR[cols]
             return _times(SD[0], y)
 
-        def solve(B, y=None):  # y: M(Z0)^-1 B when known
+        def solve(B, y=None, shift=None):
+            """M(Z)^-1 B; y: M(Z0)^-1 (B + U shift) when known (shift: 2|D| x c on D's rows, as
+            V^T's; none: y = M(Z0)^-1 B).  M(Z)^-1 B = y - Zc C^-1 (V^T y + shift) for any shift."""
             if y is None:
                 y = self._base_solve(B)
             # (D's unit rows hold to rounding only; making them exact cost accuracy: on the m = 1000
             # strip at F = 30 the transitions' alpha drifted 1e-8 from the fresh LUs' after 4900)
             # (ZcD X from the rows of Zc^T, not from ZcD: F-ordered, it took BLAS a pass per column)
-            z = _getrs(lu, piv, self._vt(D, types, y[D], y[self.m + D], S_D(y)))[0]
+            v = self._vt(D, types, y[D], y[self.m + D], S_D(y))
+            z = _getrs(lu, piv, v if shift is None else v + shift)[0]
             return y - _rows_t_times(ZcT, cols, z)
 
         return solve
@@ -2189,9 +2204,16 @@ class _Updater:
             D = self.rebase(codes, "cost")
         B = _scaled_rhs(types, W, self.rho)
         for attempt in range(2):
-            y = self._ensure(D, B)
+            # the base's solution of the same data (its own right-hand side: D's rows as the base
+            # has them), not of this branch's right-hand side, from which M(Z)^-1 B differs by a
+            # term of the size of the two states' difference; with B itself, an opened node's gap
+            # row would read w_j = 0 there and y would be of the size of w -- on slender bodies
+            # thousands of times the multipliers, whose difference with y then lost that many digits
+            B0 = B if not D.size else _scaled_rhs(self.types0, W, self.rho)
+            y = self._ensure(D, B0)
             solve = self._solver(types, D)
-            L = None if solve is None else solve(B, y)
+            shift = None if not D.size else (B0 - B)[_node_rows(self.m, D)]
+            L = None if solve is None else solve(B, y, shift)
             if L is None:  # M(Z) singular (C singular with a regular base), or the updates broke down
                 if attempt == 0 and D.size:
                     D = self.rebase(codes, "singular")
@@ -2232,6 +2254,17 @@ class _Updater:
                 SDl = _s_times(s, Dl)
                 SL = SL + SDl
                 applied = (Dl, SDl)
+                if step == 0:
+                    Lc = np.abs(L).max(axis=0, initial=0.0)
+                    if _columns_converged(csizes, True, Lc, UPDATE_FIRST_RTOL):
+                        # a first solve this accurate leaves, once corrected, its rounding only: the
+                        # correction applied, no measured one; the error estimate is UPDATE_LEFT_ULPS
+                        # units of each column (as this correction's indicators, scaled)
+                        Eg_scale = min(1.0, float((UPDATE_LEFT_ULPS * np.finfo(float).eps * Lc
+                                                   / np.maximum(csizes[0], 1e-300)).max(initial=0.0)))
+                        self.first_accepted += 1
+                        settled = True  # (its columns' error is that estimate, not the correction)
+                        break
                 if converged:
                     if more:  # refining on: to the floor, or this many steps
                         if step + 1 == UPDATE_REFINE_STEPS:
