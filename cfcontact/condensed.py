@@ -2018,7 +2018,12 @@ class _Updater:
     M(Z) = M(Z0) + U V^T with U = the unit columns of D's rows and V^T = the change of those rows
     (rank 2|D|), and (Sherman-Morrison-Woodbury)
 
-        M(Z)^-1 b = y - Zc C^-1 V^T y,   y = M(Z0)^-1 b,   Zc = M(Z0)^-1 U,   C = I + V^T Zc.
+        M(Z)^-1 b = y - Zc C^-1 (V^T y + s),   y = M(Z0)^-1 (b + U s),   Zc = M(Z0)^-1 U,
+        C = I + V^T Zc,
+
+    for any s on D's rows; s is what the base's own right-hand side has there, so that y is the
+    base state's solution of the same data (with s = 0 a node the branch opens would read w_j = 0
+    in the base's gap row, and y would carry the size of the data w: digits lost).
 
     The S rows are scaled by rho (rho S is of the size of the unit rows: the indicators' own
     weighting), so that V, C and the refinement residual mix no scales.
@@ -2032,14 +2037,16 @@ class _Updater:
     length (the cost model: UPDATE_NODE_COST, UPDATE_FLOP_COST); also when |D| would exceed
     ``max_rank`` (the kept columns' memory), or when a step of iterative refinement against
     M(Z) itself shows that the updates lost accuracy.  Every solve is refined against M(Z) (its
-    rows are those of S and unit rows) until a correction has fallen below 1e-3 of the first (two
-    steps as a rule: the second measures the contraction, which is what reveals a near-singular
-    branch), which also measures the result's rounding error; a last correction at the level of
-    rounding (UPDATE_UNAPPLIED_RTOL) is only measured, not applied.
+    rows are those of S and unit rows): a first solve whose correction is within UPDATE_FIRST_RTOL
+    of each column takes that one correction; others are refined until a correction has fallen
+    below 1e-3 of the first (the second step measures the contraction, which is what reveals a
+    near-singular branch), which also measures the result's rounding error; a last correction at
+    the level of rounding (UPDATE_UNAPPLIED_RTOL) is only measured, not applied.
 
     Cost per branch: one solve with the kept LU for the values and rates (with the columns of
     nodes new to the cache), a product with S, and per refinement step one more solve and one
-    more product (none for a last correction at rounding level); products and solves with the two columns go column
+    more product (none for a last correction at rounding level; one step after an accurate first
+    solve); products and solves with the two columns go column
     by column (:data:`COLUMNWISE_MIN_ROWS`); the products with a symmetric S read its upper
     triangle only (:func:`_s_times`).  (BLAS' symv, a column at a time, made Part B's path only
     4 % faster, and its rounding left points 3x farther from (1)-(3) on the strips: 7.5e-10
