@@ -2266,9 +2266,9 @@ class _Updater:
                     if _columns_converged(csizes, True, Lc, UPDATE_FIRST_RTOL):
                         # a first solve this accurate leaves, once corrected, its rounding only: the
                         # correction applied, no measured one; the error estimate is UPDATE_LEFT_ULPS
-                        # units of each column (as this correction's indicators, scaled)
-                        Eg_scale = min(1.0, float((UPDATE_LEFT_ULPS * np.finfo(float).eps * Lc
-                                                   / np.maximum(csizes[0], 1e-300)).max(initial=0.0)))
+                        # units of each column (as this correction's indicators, scaled per column)
+                        Eg_scale = np.minimum(1.0, UPDATE_LEFT_ULPS * np.finfo(float).eps * Lc
+                                              / np.maximum(csizes[0], 1e-300))
                         self.first_accepted += 1
                         settled = True  # (its columns' error is that estimate, not the correction)
                         break
