@@ -480,7 +480,7 @@ def test_each_column_of_an_updated_solve_is_judged_by_its_own_size():
     its rounding floor and corrected against K (a fresh base where its refinement stops
     contracting).  Since the kept base solves each branch's data with its own right-hand side
     (test_the_base_solves_the_branch_data_with_its_own_right_hand_side) that strip's first solves
-    are accurate and no branch needs it; the strip stays within 1e-9 (8.5e-11 here)."""
+    are accurate and no branch needs it there; the strip stays within 1e-9."""
     from cfcontact.bench_stress import strip
 
     big, small = 1.0, 1.7e-5
