@@ -57,6 +57,7 @@ from typing import Optional
 
 import numpy as np
 
+from cfcontact import native
 from cfcontact.backend import select_solver
 from cfcontact.errors import ConvergenceError, InputError, SingularSystemError, StartInterrupted
 from cfcontact.jsonio import jsonable
@@ -88,6 +89,7 @@ ERROR_FACTOR = 16.0
 #: largest row of 0.16 where the exact value is 0: a root that it alone separates by 1e-17 in
 #: alpha from the node's closing is the same point.
 DATA_ULPS = 16.0
+_EPS = float(np.finfo(float).eps)
 #: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them).
 PERTURBATION_COLUMNS = 2
 #: A degenerate point's intermediate branches come from rank-2 updates of one model of the point
@@ -373,19 +375,25 @@ class _CondensedData:
         L, G, Eg = self.solver.branch_data(W, key, codes, refine=True, true=true)
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
-        # B u rows are equations of the branch, exactly zero (CondensedSolver._ind)
+        # B u rows are equations of the branch, exactly zero (CondensedSolver._ind); and the data's
+        # rounding on the free rows (DATA_ULPS units of the data's largest entry)
         imposed = self.solver.imposed_rows(codes)
         lam, dlam = L[:, 0], L[:, 1]
-        rho, w_max = self.rho, np.abs(w).max(initial=0.0)
-        dv, ds = self._data_scale(w, w_max, lam), self._data_scale(self.dw, self.dw_max, dlam)
-        dv[imposed] = 0.0
-        ds[imposed] = 0.0
-        rows3 = self._rows3  # indicator -> its row of B u (a: N u, bp and bm: T u)
-        scale_v = np.abs(lam).max(initial=0.0) + rho * dv.take(rows3)
-        scale_s = np.abs(dlam).max(initial=0.0) + rho * ds.take(rows3)
-        free = (~imposed).take(rows3)
-        unit = DATA_ULPS * np.finfo(float).eps * rho
-        floor = ((unit * w_max) * free, (unit * self.dw_max) * free)
+        rho = self.rho
+        unit = DATA_ULPS * _EPS * rho
+        compiled = native.line_scales(W, L, self.sqrt_diag, imposed, rho, unit) if self.sqrt_diag.size else None
+        if compiled is not None:
+            scale_v, scale_s, *floor = compiled
+        else:
+            w_max = np.abs(w).max(initial=0.0)
+            dv, ds = self._data_scale(w, w_max, lam), self._data_scale(self.dw, self.dw_max, dlam)
+            dv[imposed] = 0.0
+            ds[imposed] = 0.0
+            rows3 = self._rows3  # indicator -> its row of B u (a: N u, bp and bm: T u)
+            scale_v = np.abs(lam).max(initial=0.0) + rho * dv.take(rows3)
+            scale_s = np.abs(dlam).max(initial=0.0) + rho * ds.take(rows3)
+            free = (~imposed).take(rows3)
+            floor = ((unit * w_max) * free, (unit * self.dw_max) * free)
         solver = self.solver
 
         def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]

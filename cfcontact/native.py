@@ -17,6 +17,10 @@
 * the product of a symmetric S with two columns from its upper triangle (:func:`symv2`): half
   of S read, 1.4-1.6x faster than :func:`gemv2` at 1728-8000 rows, as accurate (BLAS' symv,
   a column at a time, had made Part B's path only 4 % faster).
+* a small branch of the exact method in one call (:class:`BranchKernel`: reduced matrix, LU,
+  solve with one refinement step, indicators) and its indicators' scales (:func:`line_scales`):
+  for small reduced systems NumPy's and LAPACK's per-call overhead is most of a branch (73 ->
+  25 us at 2m = 60).
 
 The C source below is compiled on first use (never at import) with the C compiler that dolfinx
 itself needs for its forms (``cc``, or ``$CC``), ``-O3 -march=native -ffp-contract=off``: no
@@ -53,6 +57,7 @@ log = logging.getLogger(__name__)
 
 _SOURCE = r"""
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 
 /* the rounding error of the product p = fl(a x): a x = p + e exactly */
@@ -355,6 +360,233 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
         Y1[j] += (w[n] + w[5 * n]) + (w[3 * n] + w[7 * n]);
     }
 }
+/* The exact method's branch data for a small reduced system, in one call (CondensedSolver.
+   branch_data without updates; see its docstring for the algebra).  n2 = 2m rows of B u.
+   S: n2 x n2, row-major (row stride lds); imposed: n2 flags (the branch's equation rows: the
+   free unknowns); codes: m state codes (0 open, 1 stick, 2 slip+, 3 slip-); F: m friction
+   coefficients; w: n2 x 2, row-major (the values' and the rates' data).
+   factor != 0: forms rows (the imposed rows), slip (the slipping nodes) with coef = +-F, and the
+   reduced matrix M = S[rows, rows] with coef S[rows, m + slip] added to the slipping nodes'
+   lam_n columns; its LU as LAPACK's getrf of M^T (lu: k x k column-major, i.e. M row-major;
+   piv 0-based; partial pivoting, the first largest entry); nk[0] = k, nk[1] = ns.  factor == 0:
+   lu, piv, rows, slip, coef, nk are given (a kept factorization).
+   Then x = M^-1 w[rows] (getrs with trans = 1), one step of refinement with the same LU, the
+   multipliers L (n2 x 2, row-major: x expanded, lam_t = coef lam_n of the slipping nodes), the
+   indicators G (3m x 2, row-major: (a, bp, bm) of lam + rho r, r = w - S L with the imposed rows
+   zero) and E = |the indicators of the refinement's correction| (3m x 2).
+   work: 9 n2 doubles; iwork: 2 n2 int64.  Returns 0, or 1 when M is singular (a pivot below
+   1e-14 of the largest, or one not finite). */
+static void bs_expand(int64_t m, int64_t k, int64_t ns, const int64_t *rows, const int64_t *slip,
+                      const int64_t *pos, const double *coef, const double *x0, const double *x1, double *X)
+{
+    for (int64_t i = 0; i < 4 * m; i++)
+        X[i] = 0.0;
+    for (int64_t a = 0; a < k; a++) {
+        X[2 * rows[a]] = x0[a];
+        X[2 * rows[a] + 1] = x1[a];
+    }
+    for (int64_t s = 0; s < ns; s++) {
+        X[2 * (m + slip[s])] = coef[s] * x0[pos[s]];
+        X[2 * (m + slip[s]) + 1] = coef[s] * x1[pos[s]];
+    }
+}
+
+static void bs_product(int64_t n2, const double *S, int64_t lds, int64_t nsup, const int64_t *sup,
+                       const double *X, double *Y)
+{
+    for (int64_t i = 0; i < n2; i++) {
+        const double *r = S + i * lds;
+        double y0 = 0.0, y1 = 0.0;
+        for (int64_t t = 0; t < nsup; t++) {
+            int64_t j = sup[t];
+            y0 += r[j] * X[2 * j];
+            y1 += r[j] * X[2 * j + 1];
+        }
+        Y[2 * i] = y0;
+        Y[2 * i + 1] = y1;
+    }
+}
+
+static void bs_indicators(int64_t m, const uint8_t *imposed, const double *F, const double *w, const double *L,
+                          const double *SL, double rho, int absolute, double *G)
+{
+    for (int64_t q = 0; q < 2; q++) {
+        for (int64_t i = 0; i < m; i++) {
+            double rn = imposed[i] ? 0.0 : (w ? w[2 * i + q] : 0.0) - SL[2 * i + q];
+            double rt = imposed[m + i] ? 0.0 : (w ? w[2 * (m + i) + q] : 0.0) - SL[2 * (m + i) + q];
+            double ln = L[2 * i + q];
+            double a = ln + rho * rn, b = L[2 * (m + i) + q] + rho * rt, fl = F[i] * ln;
+            double bp = b - fl, bm = b + fl;
+            if (absolute) {
+                a = fabs(a);
+                bp = fabs(bp);
+                bm = fabs(bm);
+            }
+            G[2 * i + q] = a;
+            G[2 * (m + i) + q] = bp;
+            G[2 * (2 * m + i) + q] = bm;
+        }
+    }
+}
+
+int cfc_branch_small(int64_t m, const double *S, int64_t lds, const uint8_t *imposed, const int8_t *codes,
+                     const double *F, const double *w, double rho, int factor, int64_t *nk, double *lu,
+                     int32_t *piv, int64_t *rows, int64_t *slip, double *coef, double *L, double *G, double *E,
+                     double *work, int64_t *iwork)
+{
+    const int64_t n2 = 2 * m;
+    int64_t k, ns;
+    if (factor) {
+        k = 0;
+        for (int64_t i = 0; i < n2; i++)
+            if (imposed[i])
+                rows[k++] = i;
+        ns = 0;
+        for (int64_t i = 0; i < m; i++)
+            if (codes[i] >= 2) {
+                slip[ns] = i;
+                coef[ns++] = codes[i] == 2 ? F[i] : -F[i];
+            }
+        nk[0] = k;
+        nk[1] = ns;
+    } else {
+        k = nk[0];
+        ns = nk[1];
+    }
+    /* pos: each slipping node's lam_n among the unknowns (rows and slip both ascending) */
+    int64_t *pos = iwork, *sup = iwork + n2;
+    for (int64_t s = 0, a = 0; s < ns; s++) {
+        while (a < k && rows[a] < slip[s])
+            a++;
+        pos[s] = a;
+    }
+    for (int64_t a = 0; a < k; a++)
+        sup[a] = rows[a];
+    for (int64_t s = 0; s < ns; s++)
+        sup[k + s] = m + slip[s];
+    const int64_t nsup = k + ns;
+    if (factor && k) {
+        /* lu = M in row-major = M^T in column-major */
+        for (int64_t a = 0; a < k; a++) {
+            const double *r = S + rows[a] * lds;
+            double *o = lu + a * k;
+            for (int64_t b = 0; b < k; b++)
+                o[b] = r[rows[b]];
+            for (int64_t s = 0; s < ns; s++)
+                o[pos[s]] += r[m + slip[s]] * coef[s];
+        }
+        double dmax = 0.0, dmin = INFINITY;
+        for (int64_t j = 0; j < k; j++) {
+            double *cj = lu + j * k;
+            int64_t p = j;
+            double amax = fabs(cj[j]);
+            for (int64_t i = j + 1; i < k; i++) {
+                double a = fabs(cj[i]);
+                if (a > amax) {
+                    amax = a;
+                    p = i;
+                }
+            }
+            piv[j] = (int32_t)p;
+            if (p != j)
+                for (int64_t l = 0; l < k; l++) {
+                    double t = lu[j + l * k];
+                    lu[j + l * k] = lu[p + l * k];
+                    lu[p + l * k] = t;
+                }
+            const double d = cj[j];
+            if (d != 0.0)
+                for (int64_t i = j + 1; i < k; i++)
+                    cj[i] /= d;
+            for (int64_t l = j + 1; l < k; l++) {
+                double *cl = lu + l * k;
+                const double t = cl[j];
+                if (t != 0.0)
+                    for (int64_t i = j + 1; i < k; i++)
+                        cl[i] -= cj[i] * t;
+            }
+            double ad = fabs(d);
+            if (!(ad <= dmax)) /* (NaN: not <=) */
+                dmax = ad;
+            if (ad < dmin)
+                dmin = ad;
+        }
+        if (!(dmax < INFINITY) || dmin <= 1e-14 * (dmax > 1e-300 ? dmax : 1e-300))
+            return 1;
+    }
+    double *x0 = work, *x1 = work + n2, *SL = work + 2 * n2, *D = work + 4 * n2, *SD = work + 6 * n2;
+    for (int64_t a = 0; a < k; a++) {
+        x0[a] = w[2 * rows[a]];
+        x1[a] = w[2 * rows[a] + 1];
+    }
+    if (k)
+        cfc_getrs2t(k, lu, k, piv, x0, x1);
+    bs_expand(m, k, ns, rows, slip, pos, coef, x0, x1, L);
+    bs_product(n2, S, lds, nsup, sup, L, SL);
+    /* one step of refinement: the gaps of the equation rows, solved with the same LU */
+    for (int64_t a = 0; a < k; a++) {
+        x0[a] = w[2 * rows[a]] - SL[2 * rows[a]];
+        x1[a] = w[2 * rows[a] + 1] - SL[2 * rows[a] + 1];
+    }
+    if (k)
+        cfc_getrs2t(k, lu, k, piv, x0, x1);
+    bs_expand(m, k, ns, rows, slip, pos, coef, x0, x1, D);
+    bs_product(n2, S, lds, nsup, sup, D, SD);
+    for (int64_t i = 0; i < 2 * n2; i++) {
+        L[i] += D[i];
+        SL[i] += SD[i];
+    }
+    bs_indicators(m, imposed, F, w, L, SL, rho, 0, G);
+    bs_indicators(m, imposed, F, NULL, D, SD, rho, 1, E);
+    return 0;
+}
+/* Per indicator (3m: a, bp, bm) of a branch, what exact._CondensedData.line measures its values
+   and rates against: scale_v and scale_s = the multipliers' (values', rates') largest entry plus
+   rho times the size of the terms that the indicator's row of B u sums (|w_i| + sqrt(S_ii)
+   sum_j sqrt(S_jj) |lam_j|, at most the data's largest entry; zero on the branch's imposed rows),
+   and the data floors unit * max |w| (values) and unit * max |dw| (rates) on the free rows (zero on
+   the imposed ones).  W, L: n2 x 2, row-major (data and multipliers: values, rates); sq: n2
+   square roots of S's diagonal; out: 4 x 3m (scale_v, scale_s, floor_v, floor_s). */
+void cfc_line_scales(int64_t m, const double *W, const double *L, const double *sq, const uint8_t *imposed,
+                     double rho, double unit, double *out)
+{
+    const int64_t n2 = 2 * m;
+    double s0 = 0.0, s1 = 0.0, l0 = 0.0, l1 = 0.0, w0 = 0.0, w1 = 0.0;
+    for (int64_t i = 0; i < n2; i++) {
+        double a = fabs(L[2 * i]), b = fabs(L[2 * i + 1]), c = fabs(W[2 * i]), d = fabs(W[2 * i + 1]);
+        s0 += sq[i] * a;
+        s1 += sq[i] * b;
+        l0 = a > l0 ? a : l0;
+        l1 = b > l1 ? b : l1;
+        w0 = c > w0 ? c : w0;
+        w1 = d > w1 ? d : w1;
+    }
+    double *sv = out, *ss = out + 3 * m, *fv = out + 6 * m, *fs = out + 9 * m;
+    const double uv = unit * w0, us = unit * w1;
+    for (int64_t i = 0; i < n2; i++) {
+        double dv = 0.0, ds = 0.0, f0 = 0.0, f1 = 0.0;
+        if (!imposed[i]) {
+            dv = fabs(W[2 * i]) + sq[i] * s0;
+            ds = fabs(W[2 * i + 1]) + sq[i] * s1;
+            dv = dv < w0 ? dv : w0;
+            ds = ds < w1 ? ds : w1;
+            f0 = uv;
+            f1 = us;
+        }
+        const double v = l0 + rho * dv, r = l1 + rho * ds;
+        /* row i of B u is read by indicator i (a: i < m; bp: m <= i < 2m) and, for T u, by bm (i + m) */
+        sv[i] = v;
+        ss[i] = r;
+        fv[i] = f0;
+        fs[i] = f1;
+        if (i >= m) {
+            sv[i + m] = v;
+            ss[i + m] = r;
+            fv[i + m] = f0;
+            fs[i + m] = f1;
+        }
+    }
+}
 """
 
 _FLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-shared"]
@@ -453,6 +685,11 @@ def _load():
     lib.cfc_symv2.argtypes = [i64, ptr, i64, ptr, ptr, ptr, ptr, ptr]
     for f in (lib.cfc_dd_residual, lib.cfc_gemv2, lib.cfc_getrs2t, lib.cfc_gemv2t, lib.cfc_symv2):
         f.restype = None
+    lib.cfc_branch_small.argtypes = [i64, ptr, i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_int, ptr, ptr, ptr,
+                                     ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+    lib.cfc_branch_small.restype = ctypes.c_int
+    lib.cfc_line_scales.argtypes = [i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ptr]
+    lib.cfc_line_scales.restype = None
     return lib
 
 
@@ -548,3 +785,95 @@ def dd_residual(kernel, indptr: np.ndarray, indices: np.ndarray, data: np.ndarra
     kernel(nrows, indptr.ctypes.data, indices.ctypes.data, data.ctypes.data, k, b.ctypes.data, max(nrows, 1),
            x.ctypes.data, max(x.shape[0], 1), r.ctypes.data, max(nrows, 1))
     return r
+
+
+def line_scales(W: np.ndarray, L: np.ndarray, sq: np.ndarray, imposed: np.ndarray, rho: float,
+                unit: float) -> Optional[np.ndarray]:
+    """(scale_v, scale_s, floor_v, floor_s) of a branch (4 x 3m, see ``cfc_line_scales``; the
+    NumPy form is :meth:`cfcontact.exact._CondensedData.line`'s) from its data W and multipliers L
+    (2m x 2: values, rates), sqrt(diag S) and its imposed rows; None without the compiled library."""
+    lib = library()
+    if lib is None:
+        return None
+    n2 = sq.size
+    W = np.ascontiguousarray(W, dtype=np.float64)
+    L = np.ascontiguousarray(L, dtype=np.float64)
+    if W.shape != (n2, 2) or L.shape != (n2, 2) or imposed.shape != (n2,) or imposed.dtype != np.bool_ or n2 % 2:
+        raise ValueError(f"line_scales takes W and L ({n2}, 2) and imposed ({n2},) bool; got {W.shape}, {L.shape}, "
+                         f"{imposed.shape} {imposed.dtype}")
+    out = np.empty((4, 3 * (n2 // 2)))
+    lib.cfc_line_scales(n2 // 2, W.ctypes.data, L.ctypes.data, sq.ctypes.data, imposed.ctypes.data, rho, unit,
+                        out.ctypes.data)
+    return out
+
+
+class BranchKernel:
+    """The exact method's branch data for small reduced systems in one compiled call
+    (``cfc_branch_small``): the reduced matrix of a state, its LU, the solve for the values' and
+    the rates' columns with one refinement step, the multipliers, the indicators and the
+    refinement's change of them.  What :meth:`cfcontact.condensed.CondensedSolver.branch_data`
+    does with some thirty NumPy and LAPACK calls (70 us per branch at 2m = 60, most of it their
+    overhead) in one.  Built for one S (C-ordered, 2m x 2m) and friction vector F; :meth:`create`
+    returns None without the compiled library."""
+
+    def __init__(self, lib, S: np.ndarray, F: np.ndarray):
+        self._lib = lib
+        self.S = S  # (kept alive: the kernel reads it by address)
+        self.F = np.ascontiguousarray(F, dtype=np.float64)
+        self.m = S.shape[0] // 2
+        n2 = 2 * self.m
+        self._work = np.empty(max(9 * n2, 1))
+        self._iwork = np.empty(max(2 * n2, 1), dtype=np.int64)
+        self._addr = (S.ctypes.data, self.F.ctypes.data, self._work.ctypes.data, self._iwork.ctypes.data)
+
+    @classmethod
+    def create(cls, S: np.ndarray, F: np.ndarray) -> Optional["BranchKernel"]:
+        lib = library()
+        if (lib is None or S.dtype != np.float64 or S.ndim != 2 or S.shape[0] != S.shape[1] or S.shape[0] % 2
+                or not S.flags.c_contiguous):
+            return None
+        return cls(lib, S, F)
+
+    def __call__(self, imposed: np.ndarray, codes: np.ndarray, W: np.ndarray, rho: float, entry=None):
+        """(entry, L, G, E) for the state ``codes`` (int8, m) with the imposed rows ``imposed``
+        (bool, 2m) and the data W (2m x 2, C-ordered float64); entry = (lu, piv, rows, slip, coef,
+        support) as :meth:`~cfcontact.condensed.CondensedSolver._factor_reduced` keeps it: formed
+        here when ``entry`` is None, else the given one is used.  None when the reduced matrix is
+        singular."""
+        m, n2 = self.m, 2 * self.m
+        if (W.shape != (n2, 2) or W.dtype != np.float64 or not W.flags.c_contiguous or imposed.shape != (n2,)
+                or imposed.dtype != np.bool_ or codes.shape != (m,) or codes.dtype != np.int8):
+            raise ValueError(f"cfc_branch_small takes W ({n2}, 2) float64 C-ordered, imposed ({n2},) bool and "
+                             f"codes ({m},) int8; got {W.shape} {W.dtype}, {imposed.shape} {imposed.dtype}, "
+                             f"{codes.shape} {codes.dtype}")
+        out = np.empty(16 * m + max(m, 1))  # L (2m x 2), G (3m x 2), E (3m x 2), then coef (m)
+        base = out.ctypes.data
+        S_addr, F_addr, work, iwork = self._addr
+        if entry is None:
+            k = int(np.count_nonzero(imposed))
+            lu = np.empty((k, k), order="F")
+            piv = np.empty(k, dtype=np.int32)
+            ints = np.empty(n2 + m + 2, dtype=np.int64)  # rows (2m), slip (m), (k, ns)
+            ib = ints.ctypes.data
+            args = (ib + 8 * (n2 + m), lu.ctypes.data, piv.ctypes.data, ib, ib + 8 * n2, base + 8 * 16 * m)
+        else:
+            lu, piv, rows, slip, coef, _ = entry
+            # (no copies for the kernel's own entries and LAPACK's: already these types)
+            lu, piv = np.asfortranarray(lu, dtype=np.float64), np.ascontiguousarray(piv, dtype=np.int32)
+            rows, slip = np.ascontiguousarray(rows, dtype=np.int64), np.ascontiguousarray(slip, dtype=np.int64)
+            coef = np.ascontiguousarray(coef, dtype=np.float64)
+            nk = np.array([rows.size, slip.size], dtype=np.int64)
+            args = (nk.ctypes.data, lu.ctypes.data, piv.ctypes.data, rows.ctypes.data, slip.ctypes.data,
+                    coef.ctypes.data)
+        status = self._lib.cfc_branch_small(m, S_addr, max(n2, 1), imposed.ctypes.data, codes.ctypes.data, F_addr,
+                                            W.ctypes.data, rho, entry is None, *args, base, base + 8 * 4 * m,
+                                            base + 8 * 10 * m, work, iwork)
+        if status:
+            return None
+        if entry is None:
+            k, ns = int(ints[-2]), int(ints[-1])
+            rows, slip = ints[:k], ints[n2:n2 + ns]
+            coef = out[16 * m:16 * m + ns]
+            entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
+        out = out[:16 * m].reshape(8 * m, 2)
+        return entry, out[:n2], out[n2:5 * m], out[5 * m:]

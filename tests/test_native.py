@@ -218,3 +218,114 @@ def test_two_column_symmetric_product(n):
     assert native.symv2(np.asfortranarray(A), X) is None or n == 1
     assert native.symv2(A, np.column_stack([X, X[:, :1]])) is None
     assert native.symv2(A[:, :-1].copy(), X[:-1]) is None or n == 1
+
+
+def _mixed_system(m=24, seed=3):
+    """A random lumped model whose nodes have F > 0, F = 0 and (two) no tangential unknown."""
+    from cfcontact.system import ContactSystem
+
+    rng = np.random.default_rng(seed)
+    n = 2 * m + 3
+    A = rng.standard_normal((n, n))
+    K = A @ A.T / n + np.eye(n)
+    N = np.zeros((m, n))
+    T = np.zeros((m, n))
+    for i in range(m):
+        T[i, 2 * i], N[i, 2 * i + 1] = 1.0, 1.0
+    T[[4, 11]] = 0.0  # no tangential unknown
+    F = rng.uniform(0.1, 3.0, m)
+    F[[2, 7]] = 0.0
+    return ContactSystem.from_arrays(K, N, T, rng.standard_normal(n), rng.standard_normal(n), F)
+
+
+def test_compiled_branch_data_equals_numpy_and_lapack(monkeypatch):
+    """cfc_branch_small (reduced matrix, unblocked LU, solve, one refinement step, indicators in
+    one call) against CondensedSolver.branch_data's NumPy/LAPACK path on 200 random states of a
+    model with frictionless and tangent-free nodes: the same multipliers and indicators to
+    rounding, the same kept factorization (its rows, slipping nodes and coefficients; its LU
+    solves as LAPACK's does), the refinement's change of the indicators at rounding level; a
+    cached factorization is used as formed; singular states are refused both ways."""
+    import cfcontact
+    from cfcontact import condensed
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.exact import canonical_codes, sets_from_codes
+    from cfcontact.ssnm import SolverOptions
+
+    system = _mixed_system()
+    m = system.m
+    compiled = CondensedSolver(system, SolverOptions(updates=False))
+    plain = CondensedSolver(system, SolverOptions(updates=False))
+    assert compiled._branch_kernel() is not None
+    W = compiled.load_data_many(list(system.loads_numpy()))
+    W = np.ascontiguousarray(np.column_stack([0.6 * W[:, 0] + 0.4 * W[:, 1], W[:, 1] - W[:, 0]]))
+    rng = np.random.default_rng(0)
+    checked = 0
+    for t in range(200):
+        codes = rng.integers(0, 4, m).astype(np.int8)
+        codes = canonical_codes(sets_from_codes(codes), system.friction, system.no_tangent).astype(np.int8)
+        key = b"t" + codes.tobytes()
+        monkeypatch.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", 0)
+        try:
+            Lp, Gp, Ep = plain.branch_data(W, key, codes, refine=True)
+        except cfcontact.SingularSystemError:
+            monkeypatch.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", 10 ** 9)
+            with pytest.raises(cfcontact.SingularSystemError):
+                compiled.branch_data(W, key, codes, refine=True)
+            continue
+        monkeypatch.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", 10 ** 9)
+        n0 = compiled.stats.dense_factorizations
+        Lc, Gc, Ec = compiled.branch_data(W, key, codes, refine=True)
+        assert compiled.stats.dense_factorizations == n0 + 1
+        scale = np.abs(Lp).max(axis=0) + system.rho * np.abs(W).max(axis=0)
+        assert np.all(np.abs(Lc - Lp) <= 1e-12 * scale)
+        assert np.all(np.abs(Gc - Gp) <= 1e-12 * scale)
+        assert np.all(Ec <= 1e-12 * scale) and np.all(Ep <= 1e-12 * scale)
+        (luc, pivc, rc, sc, cc, supc), (lup, pivp, rp, sp_, cp, supp) = compiled._lu[key], plain._lu[key]
+        for a, b in ((rc, rp), (sc, sp_), (cc, cp), (supc, supp)):
+            np.testing.assert_array_equal(a, b)
+        B = rng.standard_normal((rc.size, 2))
+        np.testing.assert_allclose(sla.lu_solve((luc, pivc), B, trans=1), sla.lu_solve((lup, pivp), B, trans=1),
+                                   rtol=1e-9, atol=1e-12 * np.abs(B).max())
+        again = compiled.branch_data(W, key, codes, refine=True)  # from the kept factorization
+        assert compiled.stats.dense_factorizations == n0 + 1
+        for a, b in zip(again, (Lc, Gc, Ec)):
+            np.testing.assert_array_equal(a, b)
+        checked += 1
+    assert checked > 100
+
+
+def test_compiled_line_scales_equal_numpy(monkeypatch):
+    """The exact method's per-indicator scales and data floors of a branch (cfc_line_scales)
+    against the NumPy form of exact._CondensedData.line, on random states of a model with
+    frictionless and tangent-free nodes (values and rates of the data of different sizes)."""
+    from cfcontact import exact
+    from cfcontact.condensed import CondensedSolver
+    from cfcontact.exact import canonical_codes, sets_from_codes
+    from cfcontact.ssnm import SolverOptions
+
+    system = _mixed_system(seed=8)
+    solver = CondensedSolver(system, SolverOptions(updates=False))
+    W = solver.load_data_many(list(system.loads_numpy()))
+    data = exact._CondensedData(solver, W)
+    rng = np.random.default_rng(2)
+    for t in range(40):
+        codes = rng.integers(0, 4, system.m).astype(np.int8)
+        codes = canonical_codes(sets_from_codes(codes), system.friction, system.no_tangent).astype(np.int8)
+        key, alpha = b"s" + codes.tobytes(), float(rng.uniform(-1.0, 2.0))
+        try:
+            with_kernel = data.line(codes, key, alpha)
+        except Exception as exc:  # (a singular state: the same both ways)
+            monkeypatch.setattr(native, "line_scales", lambda *a: None)
+            with pytest.raises(type(exc)):
+                data.line(codes, key, alpha)
+            monkeypatch.undo()
+            continue
+        monkeypatch.setattr(native, "line_scales", lambda *a: None)
+        plain = data.line(codes, key, alpha)
+        monkeypatch.undo()
+        # (lam, dlam, g, dg, scale_v, scale_s, full, source, eg, floor)
+        for i in (0, 1, 2, 3, 4, 5, 8):
+            np.testing.assert_allclose(with_kernel[i], plain[i], rtol=1e-13, atol=0)
+        for a, b in zip(with_kernel[9], plain[9]):
+            np.testing.assert_array_equal(a, b)
+        assert np.all(plain[4] > 0) and np.any(plain[9][0] == 0) and np.any(plain[9][0] > 0)

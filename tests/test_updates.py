@@ -132,8 +132,12 @@ def test_dense_factorization_cache_stays_within_its_byte_budget(monkeypatch):
     assert solver.stats.dense_factorizations == n0 + 1
 
 
-def test_singular_sets_are_reported_by_the_updates_too():
-    """A node pair with identical rows in S makes some sets singular: both ways say so."""
+@pytest.mark.parametrize("updates, kernel_rows", [(True, None), (False, 0), (False, 10 ** 9)])
+def test_singular_sets_are_reported_by_the_updates_too(updates, kernel_rows, monkeypatch):
+    """A node pair with identical rows in S makes some sets singular: every way says so (updates,
+    fresh LAPACK factorizations, the compiled branch kernel)."""
+    if kernel_rows is not None:
+        monkeypatch.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", kernel_rows)
     rng = np.random.default_rng(1)
     m = 30
     A = rng.standard_normal((2 * m, 2 * m))
@@ -142,14 +146,16 @@ def test_singular_sets_are_reported_by_the_updates_too():
     N, T = B[:m].copy(), B[m:].copy()
     N[1] = N[0]  # node 1 measures node 0's gap: closing both is singular
     system = ContactSystem.from_arrays(K, N, T, rng.standard_normal(2 * m), rng.standard_normal(2 * m), 0.5)
-    upd = CondensedSolver(system, SolverOptions(updates=True))
+    upd = CondensedSolver(system, SolverOptions(updates=updates))
     W = upd.load_data_many(list(system.loads_numpy()))
     codes = np.full(m, OPEN, dtype=np.int8)
     codes[0] = STICK
     upd.branch_data(W, b"", codes, refine=True)  # regular
     codes[1] = STICK
-    with pytest.raises(cfcontact.SingularSystemError):
-        upd.branch_data(W, b"", codes, refine=True)
+    with pytest.raises(cfcontact.SingularSystemError, match="singular"):
+        upd.branch_data(W, codes.tobytes(), codes, refine=True)
+    if kernel_rows:
+        assert upd._kernel is not None
 
 
 def _chain(m, F, seed, copies=1):
@@ -402,10 +408,12 @@ def test_paths_with_point_tableau_equal_paths_without(model, monkeypatch):
     assert a.stats["pivots"] == b.stats["pivots"]
 
 
-def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch):
+@pytest.mark.parametrize("updates", [True, False])
+def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch, updates):
     """Without cfcontact.native's kernels (no compiler, CFCONTACT_NATIVE=0) products with two
-    columns go by BLAS' gemv: the same path, rounding apart (every product column by column, as
-    on large interfaces, so that the kernel is used where it can be)."""
+    columns go by BLAS' gemv and branches without updates by NumPy and LAPACK instead of the
+    branch kernel: the same path, rounding apart (every product column by column, as on large
+    interfaces, so that the kernels are used where they can be)."""
     from cfcontact import native
 
     monkeypatch.setattr(condensed, "COLUMNWISE_MIN_ROWS", 1)
@@ -416,8 +424,9 @@ def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch):
             monkeypatch.setattr(native, "_tried", True)
             monkeypatch.setattr(native, "_lib", None)
         assert (native.library() is not None) == compiled
-        solver = CondensedSolver(system, SolverOptions(updates=True))
+        solver = CondensedSolver(system, SolverOptions(updates=updates))
         paths[compiled] = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+        assert (solver._kernel is not None) == (compiled and not updates)
     _same_paths(paths[True], paths[False])
     assert paths[True].status == "completed" and paths[True].folds and len(paths[True].transitions) > 50
 
