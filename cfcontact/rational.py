@@ -263,8 +263,18 @@ class RationalBranch:
         N, c = flats.shape
         if not N:
             return []
-        wd = self.woodbury(W)
         p = self.p
+        # the batch's arrays (A, B, the solve, its operand; ~5 of N (p + c)^2 doubles) within
+        # PENCIL_BATCH_BYTES: a long interface with many slipping nodes (m = 1000, p ~ 900, N ~ 2000
+        # constraints) would otherwise need tens of GB at once
+        chunk = max(1, int(PENCIL_BATCH_BYTES // (5 * 8 * (p + c) ** 2)))
+        if N > chunk:
+            signs = np.asarray(signs, dtype=float).reshape(N, c)
+            out = []
+            for i in range(0, N, chunk):
+                out.extend(self.pencil_roots_many(W, flats[i:i + chunk], signs[i:i + chunk], lo, hi, sigma))
+            return out
+        wd = self.woodbury(W)
         sg = np.asarray(signs, dtype=float).reshape(N, c)[:, :, None]
         A = np.zeros((N, p + c, p + c))
         B = np.zeros((N, p + c, p + c))
@@ -334,6 +344,11 @@ def mu_at(H, h, F) -> np.ndarray:
     if not p:
         return np.zeros(0)
     return np.linalg.solve(np.eye(p) + F * H, F * h)
+
+
+#: Memory for one batch of :meth:`RationalBranch.pencil_roots_many` (bytes): larger batches are
+#: split (the same eigenvalues, each pencil being solved on its own either way).
+PENCIL_BATCH_BYTES = 256 * 2 ** 20
 
 
 def _real_eigs(A, B, lo, hi) -> np.ndarray:

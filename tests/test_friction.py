@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import cfcontact
+from cfcontact import rational
 from cfcontact.condensed import CondensedSolver
 from cfcontact.enumerate import enumerate_solutions
 from cfcontact.errors import InputError
@@ -66,6 +67,13 @@ def test_rational_branch_matches_condensed_solver_and_roots_match_sampling():
         Fs = np.linspace(0.0, 40.0, 2001)
         poles = rb.poles(0.0, 40.0)
         batched = rb.pencil_roots_many(w[:, None], rb.cidx[:, None], rb.csgn[:, None], 0.0, 40.0, sigma=13.7)
+        # split into batches of one pencil each (the memory bound of a long interface): the same roots
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(rational, "PENCIL_BATCH_BYTES", 1)
+            split = rb.pencil_roots_many(w[:, None], rb.cidx[:, None], rb.csgn[:, None], 0.0, 40.0, sigma=13.7)
+        assert len(split) == len(batched) == rb.cidx.size
+        for a, b in zip(split, batched):
+            np.testing.assert_array_equal(a, b)
         for j in range(rb.cidx.size):
             roots = rb.pencil_roots(w[:, None], [rb.cidx[j]], [rb.csgn[j]], 0.0, 40.0)
             vals = np.array([rb.csgn[j] * rb.solve(F, w[:, None], refine=False)[1][rb.cidx[j], 0] for F in Fs])
