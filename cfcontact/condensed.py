@@ -1298,7 +1298,6 @@ class CondensedSolver:
             k = native.BranchKernel.create(self.S, self.F)
             if k is None:
                 return None
-            k.F_source = self.F
             self._kernel = k
         return k
 

@@ -819,6 +819,7 @@ class BranchKernel:
     def __init__(self, lib, S: np.ndarray, F: np.ndarray):
         self._lib = lib
         self.S = S  # (kept alive: the kernel reads it by address)
+        self.F_source = F  # the caller's friction vector (its owner checks it is still the same)
         self.F = np.ascontiguousarray(F, dtype=np.float64)
         self.m = S.shape[0] // 2
         n2 = 2 * self.m
