@@ -1949,12 +1949,27 @@ class PointTableau:
         self.no_tangent = np.asarray(s.no_tangent, dtype=bool)[nodes]
         self.updates = 0
         s.stats.dense_solves += p
+        # the compiled update and indicators (cfcontact.native: the same operations, without the
+        # twenty NumPy and BLAS calls per pivot), or None
+        self._lib = native.library()
+        if self._lib is not None:
+            self.rhoW = np.ascontiguousarray(self.rhoW)
+            self.offset = np.ascontiguousarray(self.offset)
+            self.F = np.ascontiguousarray(self.F, dtype=np.float64)
+            self._work = np.empty(4 * (p + 2 * k) + 8 * k)
+            self._addr = (self.A.ctypes.data, self.rhoW.ctypes.data, self._work.ctypes.data, self.F.ctypes.data,
+                          self.offset.ctypes.data)
 
     def indicators(self) -> np.ndarray:
         """(3k x p): the indicators a, bp, bm of each node in turn (row 3 j + i: indicator i of
         node j) for the columns of W: lam + rho (w - S lam) from the tableau's rows (their part
         without rho w: the updates keep every linear function of those rows)."""
         k, p, rho, A = self.k, self.p, self.rho, self.A
+        if self._lib is not None:
+            H = np.empty((3 * k, p))
+            A_addr, _, _, F_addr, off_addr = self._addr
+            self._lib.cfc_tableau_indicators(k, p, A_addr, 4 * k, rho, F_addr, off_addr, H.ctypes.data)
+            return H
         X, SX = A[:2 * k, :p], A[2 * k:, :p]
         Gn, Gt = X[0::2] - rho * SX[0::2], X[1::2] - rho * SX[1::2]
         FX = self.F[:, None] * X[0::2]
@@ -1969,6 +1984,13 @@ class PointTableau:
         rho S (open / closed), the tangential row between rho S (stick) and lam_t - coef lam_n = 0;
         an unchanged row makes the update rank one."""
         p, k, rho, A = self.p, self.k, self.rho, self.A
+        if self._lib is not None:
+            A_addr, rhoW_addr, work_addr, _, _ = self._addr
+            ok = self._lib.cfc_tableau_change(k, p, A_addr, 4 * k, int(j), int(old), int(new), rho, rhoW_addr,
+                                              float(self.F[j]), int(not self.no_tangent[j]), work_addr)
+            if ok:
+                self.updates += 1
+            return bool(ok)
         i = 2 * j
         Yn, Yt = A[i], A[i + 1]
         # the change of the normal row (minus that of its right-hand side), None if unchanged

@@ -447,7 +447,9 @@ class _CondensedData:
         """Indicator responses (3m x J) of the branch to the perturbation loads."""
         if self.WE is None or self.WE.shape[1] < E_loads.shape[1]:
             solver = self.solver
-            zero = solver.load_data_many([np.zeros(solver.n)])[:, 0]  # -(g; 0) when the system has a gap
+            # B K^-1 E: the data less their constant part -(g; 0) (a system with a gap), which
+            # load_data_many includes (the data of the zero load, without a solve)
+            zero = solver._gap_shifted(np.zeros(self.dw.size))
             self.WE = solver.load_data_many([E_loads[:, j] for j in range(E_loads.shape[1])]) - zero[:, None]
         WE = self.WE[:, :E_loads.shape[1]]
         _, G = self.solver.branch_data(WE, line.key, line.codes, plain=line.vertex)

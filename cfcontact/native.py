@@ -21,6 +21,9 @@
   solve with one refinement step, indicators) and its indicators' scales (:func:`line_scales`):
   for small reduced systems NumPy's and LAPACK's per-call overhead is most of a branch (73 ->
   25 us at 2m = 60).
+* the rank-one/rank-two update of a degenerate point's tableau and its indicators
+  (``cfc_tableau_change``, ``cfc_tableau_indicators``; :class:`cfcontact.condensed.PointTableau`):
+  some twenty NumPy and BLAS calls per pivot before.
 
 The C source below is compiled on first use (never at import) with the C compiler that dolfinx
 itself needs for its forms (``cc``, or ``$CC``), ``-O3 -march=native -ffp-contract=off``: no
@@ -587,6 +590,114 @@ void cfc_line_scales(int64_t m, const double *W, const double *L, const double *
         }
     }
 }
+/* The point tableau of the exact method's lexicographic walk (condensed.PointTableau): A is
+   4k x nc, column-major (lda), nc = p + 2k: rows 2j, 2j + 1 = node j's X rows (normal,
+   tangential), rows 2k + 2j, 2k + 2j + 1 = the same of S X.  cfc_tableau_change: node j from
+   state code old to new (0 open, 1 stick, 2 slip+, 3 slip-), the rank-one or rank-two update of
+   PointTableau.change (the same operations); rhoW: 2k x p row-major; work: 4 nc + 8 k doubles.
+   Returns 1, or 0 (A unchanged) when the update is near singular. */
+int cfc_tableau_change(int64_t k, int64_t p, double *A, int64_t lda, int64_t j, int old, int new_, double rho,
+                       const double *rhoW, double Fj, int tangent, double *work)
+{
+    static const double slip_sign[4] = {0.0, 0.0, 1.0, -1.0};
+    const int64_t nc = p + 2 * k, i = 2 * j;
+    double *D0 = work, *D1 = work + nc, *c0v = work + 2 * nc, *c1v = c0v + 4 * k;
+    int has0 = 0, has1 = 0;
+#define AT(r, c) A[(r) + (c) * lda]
+    if ((old == 0) != (new_ == 0)) {
+        has0 = 1;
+        for (int64_t l = 0; l < nc; l++)
+            D0[l] = new_ != 0 ? rho * AT(2 * k + i, l) - AT(i, l) : AT(i, l) - rho * AT(2 * k + i, l);
+        for (int64_t l = 0; l < p; l++) {
+            if (new_ != 0)
+                D0[l] -= rhoW[i * p + l];
+            else
+                D0[l] -= -rhoW[i * p + l];
+        }
+    }
+    const int s0 = old == 1 && tangent, s1 = new_ == 1 && tangent;
+    const double c0 = Fj * slip_sign[old], c1 = Fj * slip_sign[new_];
+    if (s0 != s1) {
+        has1 = 1;
+        for (int64_t l = 0; l < nc; l++) {
+            double St = rho * AT(2 * k + i + 1, l), Yn = AT(i, l), Yt = AT(i + 1, l);
+            D1[l] = s1 ? St - (Yt - c0 * Yn) : (Yt - c1 * Yn) - St;
+        }
+        for (int64_t l = 0; l < p; l++) {
+            if (s1)
+                D1[l] -= rhoW[(i + 1) * p + l];
+            else
+                D1[l] -= -rhoW[(i + 1) * p + l];
+        }
+    } else if (!s0 && c1 != c0) {
+        has1 = 1;
+        for (int64_t l = 0; l < nc; l++)
+            D1[l] = (c0 - c1) * AT(i, l);
+    }
+    const int64_t c = p + i;
+    if (!has0 && !has1)
+        return 1;
+    const int64_t nr = 4 * k;
+    if (!has0 || !has1) { /* rank one */
+        const int64_t r = has0 ? 0 : 1;
+        const double *D = has0 ? D0 : D1;
+        const double piv = 1.0 + D[c + r];
+        if (!(fabs(piv) > 1e-10 * (fabs(piv) > 1.0 ? fabs(piv) : 1.0)))
+            return 0;
+        for (int64_t q = 0; q < nr; q++)
+            c0v[q] = AT(q, c + r);
+        const double a = -1.0 / piv;
+        for (int64_t l = 0; l < nc; l++) {
+            const double t = a * D[l];
+            if (t != 0.0)
+                for (int64_t q = 0; q < nr; q++)
+                    AT(q, l) += c0v[q] * t;
+        }
+    } else {
+        const double C00 = 1.0 + D0[c], C01 = D0[c + 1], C10 = D1[c], C11 = 1.0 + D1[c + 1];
+        const double det = C00 * C11 - C01 * C10;
+        double mx = fabs(C00);
+        mx = fabs(C01) > mx ? fabs(C01) : mx;
+        mx = fabs(C10) > mx ? fabs(C10) : mx;
+        mx = fabs(C11) > mx ? fabs(C11) : mx;
+        mx = mx > 1.0 ? mx : 1.0;
+        if (!(fabs(det) > 1e-10 * mx * mx))
+            return 0;
+        for (int64_t q = 0; q < nr; q++) {
+            c0v[q] = AT(q, c);
+            c1v[q] = AT(q, c + 1);
+        }
+        for (int64_t l = 0; l < nc; l++) {
+            const double y0 = (C11 * D0[l] - C01 * D1[l]) / det, y1 = (C00 * D1[l] - C10 * D0[l]) / det;
+            const double t0 = -y0, t1 = -y1;
+            if (t0 != 0.0)
+                for (int64_t q = 0; q < nr; q++)
+                    AT(q, l) += c0v[q] * t0;
+            if (t1 != 0.0)
+                for (int64_t q = 0; q < nr; q++)
+                    AT(q, l) += c1v[q] * t1;
+        }
+    }
+#undef AT
+    return 1;
+}
+
+/* The point tableau's indicators (PointTableau.indicators): H (3k x p, row-major), row 3 j + i =
+   indicator i (a, bp, bm) of node j, = lam + rho (w - S lam) from A's rows plus offset (3k x p,
+   row-major: rho w of each indicator's row). */
+void cfc_tableau_indicators(int64_t k, int64_t p, const double *A, int64_t lda, double rho, const double *F,
+                            const double *offset, double *H)
+{
+    for (int64_t j = 0; j < k; j++)
+        for (int64_t l = 0; l < p; l++) {
+            const double xn = A[2 * j + l * lda], xt = A[2 * j + 1 + l * lda];
+            const double gn = xn - rho * A[2 * k + 2 * j + l * lda], gt = xt - rho * A[2 * k + 2 * j + 1 + l * lda];
+            const double fx = F[j] * xn;
+            H[(3 * j) * p + l] = gn + offset[(3 * j) * p + l];
+            H[(3 * j + 1) * p + l] = (gt - fx) + offset[(3 * j + 1) * p + l];
+            H[(3 * j + 2) * p + l] = (gt + fx) + offset[(3 * j + 2) * p + l];
+        }
+}
 """
 
 _FLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-shared"]
@@ -690,6 +801,11 @@ def _load():
     lib.cfc_branch_small.restype = ctypes.c_int
     lib.cfc_line_scales.argtypes = [i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ptr]
     lib.cfc_line_scales.restype = None
+    lib.cfc_tableau_change.argtypes = [i64, i64, ptr, i64, i64, ctypes.c_int, ctypes.c_int, ctypes.c_double, ptr,
+                                       ctypes.c_double, ctypes.c_int, ptr]
+    lib.cfc_tableau_change.restype = ctypes.c_int
+    lib.cfc_tableau_indicators.argtypes = [i64, i64, ptr, i64, ctypes.c_double, ptr, ptr, ptr]
+    lib.cfc_tableau_indicators.restype = None
     return lib
 
 

@@ -319,7 +319,8 @@ def test_point_tableau_equals_fresh_solves():
     """The tableau of a degenerate point (its nodes' indicators for the columns of W, rank-one
     and rank-two updates per state change) gives the indicators of a fresh factorization at
     those nodes on a long random walk through their states, nodes with F = 0 and without a
-    tangential unknown included."""
+    tangential unknown included; the compiled update and indicators (cfcontact.native) give
+    those of the NumPy/BLAS form to rounding at every step."""
     from cfcontact.condensed import PointTableau
 
     rng = np.random.default_rng(12)
@@ -336,6 +337,9 @@ def test_point_tableau_equals_fresh_solves():
     assert np.array_equal(system.no_tangent, nt)
     solver, W, F0, nodes, codes = _point_setup(system, rng)
     tab = PointTableau(solver, codes, W, nodes)
+    assert tab._lib is not None  # (the compiled kernels; the twin below without them)
+    twin = PointTableau(solver, codes, W, nodes)
+    twin._lib = None
     ranks = set()
     for step in range(300):
         j = int(rng.integers(nodes.size))
@@ -345,6 +349,8 @@ def test_point_tableau_equals_fresh_solves():
         new = int(rng.choice([c for c in choices if c != old]))
         before = tab.A.copy()
         assert tab.change(j, old, new)
+        assert twin.change(j, old, new)
+        assert np.abs(tab.A - twin.A).max() <= 1e-12 * np.abs(twin.A).max(), step
         ranks.add(int(np.linalg.matrix_rank(tab.A - before, tol=1e-12 * np.abs(before).max())))
         codes = codes.copy()
         codes[i] = new
@@ -352,7 +358,8 @@ def test_point_tableau_equals_fresh_solves():
         got = tab.indicators()  # 3k x p, node by node
         ref = g_ref.reshape(3, m, -1)[:, nodes].transpose(1, 0, 2).reshape(3 * nodes.size, -1)
         assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max(), step
-    assert tab.updates == 300 and ranks == {1, 2}
+        assert np.abs(got - twin.indicators()).max() <= 1e-12 * np.abs(ref).max(), step
+    assert tab.updates == twin.updates == 300 and ranks == {1, 2}
 
 
 @pytest.mark.parametrize("friction, updates", [(0.5, True), (2.0, False),
