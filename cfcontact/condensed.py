@@ -1209,8 +1209,13 @@ class CondensedSolver:
                     entry = self._factor_reduced(key, *self._reduction(Z.nu, Z.tp, Z.tm), lambda: repr(Z))
             else:
                 self._lu.move_to_end(key)
-        lu, piv, rows, slip, coef, _ = entry
         self.stats.dense_solves += W.shape[1]
+        return self._solve_entry(entry, W)
+
+    def _solve_entry(self, entry, W: np.ndarray) -> np.ndarray:
+        """lam (2m x k) of the reduced system kept as ``entry`` (:meth:`_factor_reduced`) for the
+        columns of W: the free unknowns solved, the slipping nodes' lam_t = coef lam_n."""
+        lu, piv, rows, slip, coef, _ = entry
         lam = np.zeros((2 * self.m, W.shape[1]))
         if rows.size:
             lam[rows] = _lu_solve(lu, piv, W.take(rows, axis=0), trans=1)
@@ -1295,7 +1300,7 @@ class CondensedSolver:
         None without the compiled library."""
         k = self._kernel
         if k is None or k.S is not self.S or k.F_source is not self.F:
-            k = native.BranchKernel.create(self.S, self.F)
+            k = native.BranchKernel.create(self.S, self.St, self.F)
             if k is None:
                 return None
             self._kernel = k
@@ -1318,19 +1323,7 @@ class CondensedSolver:
             self._keep_lu(key, new)
         self.stats.dense_solves += 4
         if true is not None and self.needs_true(W, G, L):  # the equations' residual from solves with K
-            lu, piv, rows, slip, coef, _ = new
-            m = self.m
-            pos = np.searchsorted(rows[:np.count_nonzero(rows < m)], slip)
-
-            def solve(R, L, c):
-                x = _lu_solve(lu, piv, R[rows], trans=1)
-                full = np.zeros((2 * m, x.shape[1]))
-                full[rows] = x
-                if slip.size:
-                    full[m + slip] = coef[:, None] * x[pos]
-                return full
-
-            L, G = self.against_K(W, L, G, imposed, true, solve)
+            L, G = self.against_K(W, L, G, imposed, true, lambda R, L, c: self._solve_entry(new, R))
         return L, G, E
 
     def _ind(self, lam, w, Slam, imposed=None):

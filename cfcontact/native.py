@@ -20,7 +20,7 @@
 * a small branch of the exact method in one call (:class:`BranchKernel`: reduced matrix, LU,
   solve with one refinement step, indicators) and its indicators' scales (:func:`line_scales`):
   for small reduced systems NumPy's and LAPACK's per-call overhead is most of a branch (73 ->
-  25 us at 2m = 60).
+  19 us at 2m = 60).
 * the rank-one/rank-two update of a degenerate point's tableau and its indicators
   (``cfc_tableau_change``, ``cfc_tableau_indicators``; :class:`cfcontact.condensed.PointTableau`):
   some twenty NumPy and BLAS calls per pivot before.
@@ -377,7 +377,8 @@ void cfc_symv2(int64_t n, const double *A, int64_t lda, const double *x0, const 
    multipliers L (n2 x 2, row-major: x expanded, lam_t = coef lam_n of the slipping nodes), the
    indicators G (3m x 2, row-major: (a, bp, bm) of lam + rho r, r = w - S L with the imposed rows
    zero) and E = |the indicators of the refinement's correction| (3m x 2).
-   work: 9 n2 doubles; iwork: 2 n2 int64.  Returns 0, or 1 when M is singular (a pivot below
+   St: S^T, row-major (S itself when S is symmetric; the products with S read its rows of St,
+   cfc_gemv2t).  work: 8 n2 doubles; iwork: 2 n2 int64.  Returns 0, or 1 when M is singular (a pivot below
    1e-14 of the largest, or one not finite). */
 static void bs_expand(int64_t m, int64_t k, int64_t ns, const int64_t *rows, const int64_t *slip,
                       const int64_t *pos, const double *coef, const double *x0, const double *x1, double *X)
@@ -394,29 +395,26 @@ static void bs_expand(int64_t m, int64_t k, int64_t ns, const int64_t *rows, con
     }
 }
 
-static void bs_product(int64_t n2, const double *S, int64_t lds, int64_t nsup, const int64_t *sup,
-                       const double *X, double *Y)
+/* (Y0, Y1) = S X for X (n2 x 2, row-major) non-zero on the rows sup only: cfc_gemv2t over those
+   rows of S^T (St, row stride lds), X's entries there gathered into g0, g1 (nsup each). */
+static void bs_product(int64_t n2, const double *St, int64_t lds, int64_t nsup, const int64_t *sup,
+                       const double *X, double *g0, double *g1, double *Y0, double *Y1)
 {
-    for (int64_t i = 0; i < n2; i++) {
-        const double *r = S + i * lds;
-        double y0 = 0.0, y1 = 0.0;
-        for (int64_t t = 0; t < nsup; t++) {
-            int64_t j = sup[t];
-            y0 += r[j] * X[2 * j];
-            y1 += r[j] * X[2 * j + 1];
-        }
-        Y[2 * i] = y0;
-        Y[2 * i + 1] = y1;
+    for (int64_t t = 0; t < nsup; t++) {
+        g0[t] = X[2 * sup[t]];
+        g1[t] = X[2 * sup[t] + 1];
     }
+    cfc_gemv2t(nsup, sup, n2, St, lds, g0, g1, Y0, Y1);
 }
 
 static void bs_indicators(int64_t m, const uint8_t *imposed, const double *F, const double *w, const double *L,
-                          const double *SL, double rho, int absolute, double *G)
+                          const double *SL0, const double *SL1, double rho, int absolute, double *G)
 {
     for (int64_t q = 0; q < 2; q++) {
+        const double *SL = q ? SL1 : SL0;
         for (int64_t i = 0; i < m; i++) {
-            double rn = imposed[i] ? 0.0 : (w ? w[2 * i + q] : 0.0) - SL[2 * i + q];
-            double rt = imposed[m + i] ? 0.0 : (w ? w[2 * (m + i) + q] : 0.0) - SL[2 * (m + i) + q];
+            double rn = imposed[i] ? 0.0 : (w ? w[2 * i + q] : 0.0) - SL[i];
+            double rt = imposed[m + i] ? 0.0 : (w ? w[2 * (m + i) + q] : 0.0) - SL[m + i];
             double ln = L[2 * i + q];
             double a = ln + rho * rn, b = L[2 * (m + i) + q] + rho * rt, fl = F[i] * ln;
             double bp = b - fl, bm = b + fl;
@@ -432,7 +430,8 @@ static void bs_indicators(int64_t m, const uint8_t *imposed, const double *F, co
     }
 }
 
-int cfc_branch_small(int64_t m, const double *S, int64_t lds, const uint8_t *imposed, const int8_t *codes,
+int cfc_branch_small(int64_t m, const double *S, const double *St, int64_t lds, const uint8_t *imposed,
+                     const int8_t *codes,
                      const double *F, const double *w, double rho, int factor, int64_t *nk, double *lu,
                      int32_t *piv, int64_t *rows, int64_t *slip, double *coef, double *L, double *G, double *E,
                      double *work, int64_t *iwork)
@@ -517,7 +516,8 @@ int cfc_branch_small(int64_t m, const double *S, int64_t lds, const uint8_t *imp
         if (!(dmax < INFINITY) || dmin <= 1e-14 * (dmax > 1e-300 ? dmax : 1e-300))
             return 1;
     }
-    double *x0 = work, *x1 = work + n2, *SL = work + 2 * n2, *D = work + 4 * n2, *SD = work + 6 * n2;
+    double *x0 = work, *x1 = work + n2, *SL0 = work + 2 * n2, *SL1 = work + 3 * n2, *D = work + 4 * n2,
+           *SD0 = work + 6 * n2, *SD1 = work + 7 * n2;
     for (int64_t a = 0; a < k; a++) {
         x0[a] = w[2 * rows[a]];
         x1[a] = w[2 * rows[a] + 1];
@@ -525,22 +525,24 @@ int cfc_branch_small(int64_t m, const double *S, int64_t lds, const uint8_t *imp
     if (k)
         cfc_getrs2t(k, lu, k, piv, x0, x1);
     bs_expand(m, k, ns, rows, slip, pos, coef, x0, x1, L);
-    bs_product(n2, S, lds, nsup, sup, L, SL);
+    bs_product(n2, St, lds, nsup, sup, L, x0, x1, SL0, SL1); /* (x0, x1: free once expanded) */
     /* one step of refinement: the gaps of the equation rows, solved with the same LU */
     for (int64_t a = 0; a < k; a++) {
-        x0[a] = w[2 * rows[a]] - SL[2 * rows[a]];
-        x1[a] = w[2 * rows[a] + 1] - SL[2 * rows[a] + 1];
+        x0[a] = w[2 * rows[a]] - SL0[rows[a]];
+        x1[a] = w[2 * rows[a] + 1] - SL1[rows[a]];
     }
     if (k)
         cfc_getrs2t(k, lu, k, piv, x0, x1);
     bs_expand(m, k, ns, rows, slip, pos, coef, x0, x1, D);
-    bs_product(n2, S, lds, nsup, sup, D, SD);
-    for (int64_t i = 0; i < 2 * n2; i++) {
+    bs_product(n2, St, lds, nsup, sup, D, x0, x1, SD0, SD1);
+    for (int64_t i = 0; i < 2 * n2; i++)
         L[i] += D[i];
-        SL[i] += SD[i];
+    for (int64_t i = 0; i < n2; i++) {
+        SL0[i] += SD0[i];
+        SL1[i] += SD1[i];
     }
-    bs_indicators(m, imposed, F, w, L, SL, rho, 0, G);
-    bs_indicators(m, imposed, F, NULL, D, SD, rho, 1, E);
+    bs_indicators(m, imposed, F, w, L, SL0, SL1, rho, 0, G);
+    bs_indicators(m, imposed, F, NULL, D, SD0, SD1, rho, 1, E);
     return 0;
 }
 /* Per indicator (3m: a, bp, bm) of a branch, what exact._CondensedData.line measures its values
@@ -796,8 +798,8 @@ def _load():
     lib.cfc_symv2.argtypes = [i64, ptr, i64, ptr, ptr, ptr, ptr, ptr]
     for f in (lib.cfc_dd_residual, lib.cfc_gemv2, lib.cfc_getrs2t, lib.cfc_gemv2t, lib.cfc_symv2):
         f.restype = None
-    lib.cfc_branch_small.argtypes = [i64, ptr, i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_int, ptr, ptr, ptr,
-                                     ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+    lib.cfc_branch_small.argtypes = [i64, ptr, ptr, i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_int, ptr, ptr,
+                                     ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
     lib.cfc_branch_small.restype = ctypes.c_int
     lib.cfc_line_scales.argtypes = [i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ptr]
     lib.cfc_line_scales.restype = None
@@ -912,6 +914,7 @@ def line_scales(W: np.ndarray, L: np.ndarray, sq: np.ndarray, imposed: np.ndarra
     if lib is None:
         return None
     n2 = sq.size
+    sq = np.ascontiguousarray(sq, dtype=np.float64)
     W = np.ascontiguousarray(W, dtype=np.float64)
     L = np.ascontiguousarray(L, dtype=np.float64)
     if W.shape != (n2, 2) or L.shape != (n2, 2) or imposed.shape != (n2,) or imposed.dtype != np.bool_ or n2 % 2:
@@ -932,24 +935,27 @@ class BranchKernel:
     overhead) in one.  Built for one S (C-ordered, 2m x 2m) and friction vector F; :meth:`create`
     returns None without the compiled library."""
 
-    def __init__(self, lib, S: np.ndarray, F: np.ndarray):
+    def __init__(self, lib, S: np.ndarray, St: np.ndarray, F: np.ndarray):
         self._lib = lib
-        self.S = S  # (kept alive: the kernel reads it by address)
+        self.S, self.St = S, St  # (kept alive: the kernel reads them by address)
         self.F_source = F  # the caller's friction vector (its owner checks it is still the same)
         self.F = np.ascontiguousarray(F, dtype=np.float64)
         self.m = S.shape[0] // 2
         n2 = 2 * self.m
-        self._work = np.empty(max(9 * n2, 1))
+        self._work = np.empty(max(8 * n2, 1))
         self._iwork = np.empty(max(2 * n2, 1), dtype=np.int64)
-        self._addr = (S.ctypes.data, self.F.ctypes.data, self._work.ctypes.data, self._iwork.ctypes.data)
+        self._addr = (S.ctypes.data, St.ctypes.data, self.F.ctypes.data, self._work.ctypes.data,
+                      self._iwork.ctypes.data)
 
     @classmethod
-    def create(cls, S: np.ndarray, F: np.ndarray) -> Optional["BranchKernel"]:
+    def create(cls, S: np.ndarray, St: np.ndarray, F: np.ndarray) -> Optional["BranchKernel"]:
+        """The kernel for S and its transpose St (the same array when S is symmetric; both
+        C-ordered float64), or None without the compiled library or for another layout."""
         lib = library()
-        if (lib is None or S.dtype != np.float64 or S.ndim != 2 or S.shape[0] != S.shape[1] or S.shape[0] % 2
-                or not S.flags.c_contiguous):
+        if (lib is None or any(A.dtype != np.float64 or not A.flags.c_contiguous for A in (S, St)) or S.ndim != 2
+                or S.shape[0] != S.shape[1] or S.shape[0] % 2 or St.shape != S.shape):
             return None
-        return cls(lib, S, F)
+        return cls(lib, S, St, F)
 
     def __call__(self, imposed: np.ndarray, codes: np.ndarray, W: np.ndarray, rho: float, entry=None):
         """(entry, L, G, E) for the state ``codes`` (int8, m) with the imposed rows ``imposed``
@@ -965,7 +971,7 @@ class BranchKernel:
                              f"{codes.shape} {codes.dtype}")
         out = np.empty(16 * m + max(m, 1))  # L (2m x 2), G (3m x 2), E (3m x 2), then coef (m)
         base = out.ctypes.data
-        S_addr, F_addr, work, iwork = self._addr
+        S_addr, St_addr, F_addr, work, iwork = self._addr
         if entry is None:
             k = int(np.count_nonzero(imposed))
             lu = np.empty((k, k), order="F")
@@ -982,8 +988,8 @@ class BranchKernel:
             nk = np.array([rows.size, slip.size], dtype=np.int64)
             args = (nk.ctypes.data, lu.ctypes.data, piv.ctypes.data, rows.ctypes.data, slip.ctypes.data,
                     coef.ctypes.data)
-        status = self._lib.cfc_branch_small(m, S_addr, max(n2, 1), imposed.ctypes.data, codes.ctypes.data, F_addr,
-                                            W.ctypes.data, rho, entry is None, *args, base, base + 8 * 4 * m,
+        status = self._lib.cfc_branch_small(m, S_addr, St_addr, max(n2, 1), imposed.ctypes.data, codes.ctypes.data,
+                                            F_addr, W.ctypes.data, rho, entry is None, *args, base, base + 8 * 4 * m,
                                             base + 8 * 10 * m, work, iwork)
         if status:
             return None
