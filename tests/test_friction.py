@@ -70,7 +70,11 @@ def test_rational_branch_matches_condensed_solver_and_roots_match_sampling():
         # split into batches of one pencil each (the memory bound of a long interface): the same roots
         with pytest.MonkeyPatch.context() as mp:
             mp.setattr(rational, "PENCIL_BATCH_BYTES", 1)
+            calls = []
+            whole = RationalBranch.pencil_roots_many
+            mp.setattr(RationalBranch, "pencil_roots_many", lambda self, *a, **k: calls.append(1) or whole(self, *a, **k))
             split = rb.pencil_roots_many(w[:, None], rb.cidx[:, None], rb.csgn[:, None], 0.0, 40.0, sigma=13.7)
+        assert len(calls) == 1 + rb.cidx.size  # (the call, then one batch per pencil)
         assert len(split) == len(batched) == rb.cidx.size
         for a, b in zip(split, batched):
             np.testing.assert_array_equal(a, b)
