@@ -1224,7 +1224,7 @@ class CondensedSolver:
         return lam
 
     def branch_data(self, W: np.ndarray, key: bytes, codes: np.ndarray, refine: bool = False,
-                    plain: bool = False, true=None) -> tuple:
+                    plain: bool = False, true=None, line=None) -> tuple:
         """(lam, g) = (:meth:`multipliers_many`, :meth:`indicators`) for the columns of W and
         the sets given by their canonical state ``codes`` (cached under ``key``): what the exact
         method needs of a branch.
@@ -1237,15 +1237,22 @@ class CondensedSolver:
         refinement steps, times its contraction).  ``true``: (loads, gap) of W's columns (see
         :meth:`true_rows`; loads may be a callable that returns them): where the data's rounding
         can reach the multipliers (:meth:`needs_true`), last corrections solve the residual of the
-        branch's equations in B u from solves with K, not w - S lam (:meth:`against_K`)."""
+        branch's equations in B u from solves with K, not w - S lam (:meth:`against_K`).
+
+        ``line``: (request, around) for the compiled kernel (:meth:`cfcontact.native.BranchKernel.line`,
+        with ``refine``): a fourth result, the branch's tolerances and constraints formed in the
+        same call, or None where the kernel did not form them (or formed them before a correction
+        against K changed the branch)."""
         if self.use_updates:
             if self._updater is None:
                 self._updater = _Updater(self)
-            return self._updater.branch_data(W, codes, refine, true)
+            res = self._updater.branch_data(W, codes, refine, true)
+            return res if line is None else (*res, None)
         if refine and not plain and W.shape[1] == 2 and 2 * self.m <= BRANCH_KERNEL_MAX_ROWS:
             kernel = self._branch_kernel()
             if kernel is not None:
-                return self._branch_data_compiled(kernel, W, key, codes, true)
+                res = self._branch_data_compiled(kernel, W, key, codes, true, line)
+                return res if line is not None else res[:3]
         entry = self._lu.get(key)
         if entry is None:
             entry = self._factor_codes(key, np.asarray(codes))
@@ -1268,7 +1275,9 @@ class CondensedSolver:
         if not rows.size:
             L = np.zeros((2 * m, c))
             G = self._ind(L, W, np.zeros_like(W), imposed)
-            return (L, G, np.zeros_like(G)) if refine else (L, G)
+            if not refine:
+                return L, G
+            return (L, G, np.zeros_like(G)) if line is None else (L, G, np.zeros_like(G), None)
         Wr = W[rows]
 
         def expand(x):  # free unknowns -> (lam_n, lam_t), and S times it
@@ -1293,7 +1302,8 @@ class CondensedSolver:
                                   lambda R, L, c: expand(_lu_solve(lu, piv, R[rows], trans=1))[0])
         if not refine:
             return L, G
-        return L, G, np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
+        E = np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
+        return (L, G, E) if line is None else (L, G, E, None)
 
     def _branch_kernel(self):
         """The compiled branch kernel for this S and F (:class:`cfcontact.native.BranchKernel`), or
@@ -1306,25 +1316,32 @@ class CondensedSolver:
             self._kernel = k
         return k
 
-    def _branch_data_compiled(self, kernel, W, key, codes, true) -> tuple:
+    def _branch_data_compiled(self, kernel, W, key, codes, true, line=None) -> tuple:
         """:meth:`branch_data` with ``refine`` for two columns by the compiled kernel: the same
-        reduced system, LU (partial pivoting), solve, refinement step and indicators in one call."""
+        reduced system, LU (partial pivoting), solve, refinement step and indicators in one call
+        (L, G, E, constraints; see ``line``)."""
         entry = self._lu.get(key)
         if entry is not None:
             self._lu.move_to_end(key)
         codes = np.asarray(codes, dtype=np.int8)
         imposed = self.imposed_rows(codes)
-        res = kernel(imposed, codes, np.ascontiguousarray(W, dtype=np.float64), self.system.rho, entry)
+        W = np.ascontiguousarray(W, dtype=np.float64)
+        if line is None:
+            res = kernel(imposed, codes, W, self.system.rho, entry)
+        else:
+            res = kernel.line(imposed, codes, W, self.system.rho, entry, *line)
         if res is None:
             raise SingularSystemError(f"DirNeu(Z) is singular (condensed matrix) for {self._describe_codes(codes)}")
-        new, L, G, E = res
+        new, L, G, E = res[:4]
+        cons = res[4] if line is not None else None
         if entry is None:
             self.stats.dense_factorizations += 1
             self._keep_lu(key, new)
         self.stats.dense_solves += 4
         if true is not None and self.needs_true(W, G, L):  # the equations' residual from solves with K
             L, G = self.against_K(W, L, G, imposed, true, lambda R, L, c: self._solve_entry(new, R))
-        return L, G, E
+            cons = None  # (formed from the uncorrected branch)
+        return L, G, E, cons
 
     def _ind(self, lam, w, Slam, imposed=None):
         """The indicators (a, bp, bm) stacked (3m x k) from lam, w and S lam.  ``imposed``: the

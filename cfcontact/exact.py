@@ -278,6 +278,17 @@ class _Line:
         self._full = full
         self.source = source  # backend forming u on demand (lazy branches of the path), or None
 
+    @classmethod
+    def compiled(cls, codes, key, alpha, lam, dlam, g, dg, cons, full, source) -> "_Line":
+        """The branch from its tolerances and constraints formed by the compiled kernel
+        (:func:`cfcontact.native.line_constraints`: the same arithmetic as :meth:`__init__`'s)."""
+        ln = cls.__new__(cls)
+        ln.codes, ln.key, ln.alpha = codes, key, float(alpha)
+        ln.lam, ln.dlam, ln.g, ln.dg = lam, dlam, g, dg
+        (ln.ind_tv, ln.ind_ts, ln.cidx, ln.csgn, ln.cnode, ln.c, ln.dc, ln.tol_v, ln.tol_s, ln.scale) = cons
+        ln.P, ln.vertex, ln._sets, ln._Y, ln._full, ln.source = None, False, None, None, full, source
+        return ln
+
     @property
     def sets(self) -> InactiveSets:
         if self._sets is None:
@@ -311,7 +322,7 @@ class _Line:
 
     def position(self, node, ind):
         """Index in the constraint list of node's constraint on indicator ``ind`` (or -1)."""
-        j = np.flatnonzero((self.cnode == node) & (self.cidx == ind * self.codes.size + node))
+        j = (self.cidx == ind * self.codes.size + node).nonzero()[0]  # (the flat index names the node)
         return int(j[0]) if j.size else -1
 
 
@@ -345,6 +356,7 @@ class _CondensedData:
         self.apex = affine_zero(self.w1, self.w2)
         m = self.dw.size // 2
         self._rows3 = np.concatenate([np.arange(m), m + np.arange(m), m + np.arange(m)])
+        self._request = None  # what the compiled branch kernel needs to form a branch's constraints too
 
     def _data_scale(self, w, w_max, lam) -> np.ndarray:
         """Per row i of B u (2m), the size of the terms that w_i - (S lam)_i sums: |w_i| plus the
@@ -360,7 +372,9 @@ class _CondensedData:
         r += self.sqrt_diag * (self.sqrt_diag @ np.abs(lam))
         return np.minimum(r, w_max, out=r)
 
-    def line(self, codes, key, alpha):
+    def make_line(self, codes, key, alpha, rtol, kinds) -> _Line:
+        """The branch of the state ``codes`` referenced at alpha (``kinds``: the node kinds of
+        the tables, int64; ``rtol``: the run's relative tolerance)."""
         W = np.empty((self.dw.size, 2))
         w = W[:, 0]
         np.multiply(self.w1, 1.0 - alpha, out=w)
@@ -372,18 +386,36 @@ class _CondensedData:
             # (formed only if the branch is corrected against K: most never are)
             true = ((lambda: own([alpha], rates=1)) if own else
                     (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1])), (True, False))
-        L, G, Eg = self.solver.branch_data(W, key, codes, refine=True, true=true)
+        request = self._request
+        if request is None or request.rtol != rtol or request.kinds_given is not kinds:
+            request = self._request = native.LineRequest(self.sqrt_diag, kinds, _CONS_SIGN, DATA_ULPS * _EPS * self.rho,
+                                                         rtol, ERROR_FACTOR)
+        L, G, Eg, cons = self.solver.branch_data(W, key, codes, refine=True, true=true,
+                                                 line=(request, ALPHA_ULPS * _alpha_ulp(alpha)))
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
         # B u rows are equations of the branch, exactly zero (CondensedSolver._ind); and the data's
         # rounding on the free rows (DATA_ULPS units of the data's largest entry)
         imposed = self.solver.imposed_rows(codes)
         lam, dlam = L[:, 0], L[:, 1]
+        g, dg = G[:, 0], G[:, 1]
+        solver = self.solver
+
+        def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
+            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0], imposed, (True, False))
+            return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
+
+        if cons is not None:  # (formed by the compiled kernel with the branch)
+            return _Line.compiled(codes, key, alpha, lam, dlam, g, dg, cons, full, solver)
+        if Eg is None:
+            rtol = FULL_BACKEND_RTOL_FACTOR * rtol
         rho = self.rho
         unit = DATA_ULPS * _EPS * rho
         compiled = native.line_scales(W, L, self.sqrt_diag, imposed, rho, unit) if self.sqrt_diag.size else None
         if compiled is not None:
-            scale_v, scale_s, *floor = compiled
+            cons = native.line_constraints(compiled, codes, kinds, _CONS_SIGN, G, Eg, rtol, ERROR_FACTOR,
+                                           ALPHA_ULPS * _alpha_ulp(alpha))
+            return _Line.compiled(codes, key, alpha, lam, dlam, g, dg, cons, full, solver)
         else:
             w_max = np.abs(w).max(initial=0.0)
             dv, ds = self._data_scale(w, w_max, lam), self._data_scale(self.dw, self.dw_max, dlam)
@@ -394,13 +426,7 @@ class _CondensedData:
             scale_s = np.abs(dlam).max(initial=0.0) + rho * ds.take(rows3)
             free = (~imposed).take(rows3)
             floor = ((unit * w_max) * free, (unit * self.dw_max) * free)
-        solver = self.solver
-
-        def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
-            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0], imposed, (True, False))
-            return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
-
-        return lam, dlam, G[:, 0], G[:, 1], scale_v, scale_s, full, solver, Eg, floor
+        return _Line(codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, kinds, full, solver, Eg, floor=floor)
 
     def _rate_columns(self, J):
         """The right-hand sides of an intermediate branch of a degenerate point: the rates' w2 - w1
@@ -501,6 +527,7 @@ class _Context:
         self.Fv = system.friction_vector
         self.F0 = self.Fv == 0.0
         self.F0_index = node_kinds(system)  # the node kind of each node (second index of the tables)
+        self._kinds = np.ascontiguousarray(self.F0_index, dtype=np.int64)
         self.m = system.m
         self.f1, self.f2 = system.loads_numpy()
         if hasattr(solver, "branch_data"):
@@ -528,10 +555,14 @@ class _Context:
         ln = self._lines.get(ck)
         if ln is not None:
             return ln
-        lam, dlam, g, dg, sv, ss, full, source, eg, floor = self.data.line(codes, b"exact:" + key, alpha)
-        rtol = self.rtol if eg is not None else FULL_BACKEND_RTOL_FACTOR * self.rtol
-        ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg,
-                   floor=floor)
+        make = getattr(self.data, "make_line", None)
+        if make is not None:
+            ln = make(codes, b"exact:" + key, alpha, self.rtol, self._kinds)
+        else:
+            lam, dlam, g, dg, sv, ss, full, source, eg, floor = self.data.line(codes, b"exact:" + key, alpha)
+            rtol = self.rtol if eg is not None else FULL_BACKEND_RTOL_FACTOR * self.rtol
+            ln = _Line(codes, b"exact:" + key, alpha, lam, dlam, g, dg, sv, ss, rtol, self.F0_index, full, source, eg,
+                       floor=floor)
         if len(self._lines) > 64:
             self._lines.clear()
         self._lines[ck] = ln
@@ -644,6 +675,10 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     none vanishes before the end of the alpha range.  Roots that lie within their rounding
     uncertainty of the first one are tied (the same point); every other root is a later, separate
     transition."""
+    bound = ctx.hi if s > 0 else ctx.lo
+    out = native.first_root(ln.c, ln.dc, ln.tol_v, ln.tol_s, s, alpha0, ln.alpha, bound, ALPHA_ULPS)
+    if out is not False:  # (the same arithmetic compiled)
+        return out
     sdc = s * ln.dc
     dec = (sdc < -ln.tol_s).nonzero()[0]
     if not dec.size:
@@ -653,7 +688,6 @@ def _exit(ctx: _Context, ln: _Line, alpha0: float, s: int):
     np.maximum(t, 0.0, out=t)
     j = int(t.argmin())
     a_star = alpha0 + s * float(t[j])
-    bound = ctx.hi if s > 0 else ctx.lo
     if s * (a_star - bound) >= 0:
         return None, None, None
     # uncertainty of each root: its data's, and the rounding of alpha itself near a_star
@@ -780,9 +814,11 @@ def _resolve(ctx: _Context, ln: _Line, s: int, a_star: float, tied, sign: int = 
         zero = np.abs(nxt.c) <= nxt.tol_v
         if e >= 0:
             zero[e] = False
+        if not zero.any():  # (an ordinary transition: one pivot)
+            return _full_exit(ctx, nxt, a_star), d, pivots, e
         rate = d * nxt.dc
         cand = zero & (rate <= nxt.tol_s)
-        if not cand.any():  # (an ordinary transition: one pivot)
+        if not cand.any():
             return _full_exit(ctx, nxt, a_star), d, pivots, e
         if nxt is first and not repair and type(ctx.data) is _CondensedData:
             out = _tableau_walk(ctx, first, d, e, sign, a_star, pivots, visited)

@@ -592,6 +592,136 @@ void cfc_line_scales(int64_t m, const double *W, const double *L, const double *
         }
     }
 }
+/* A branch's tolerances and constraints (exact._Line) after its scales (cfc_line_scales' out:
+   sv, ss, fv, fs, 3m each): what counts as zero for each indicator's value and rate,
+   tv = ((rtol sv + 1e-300) + ef E[:, 0]) + fv and ts likewise from ss, E[:, 1], fs (E: the
+   refinement's change of the indicators, 3m x 2 row-major, or NULL); then the constraints of the
+   states ``codes`` (node kinds ``kinds``), node by node and each node's in the order of the
+   indicators, where cons[(code * 3 + kind) * 3 + q] (the sign s of s * indicator_q >= 0) is not 0:
+   cidx = q m + i, cnode = i, csgn = s, c = s G[cidx, 0], dc = s G[cidx, 1],
+   tol_v = tv[cidx] + around |dc|, tol_s = ts[cidx] (G: the indicators' values and rates, 3m x 2
+   row-major).  out: tv, ts (3m each), then csgn, c, dc, tol_v, tol_s (2m each: at most two
+   constraints per node), then max(sv); iout: cidx, cnode (2m each).  Returns the count of
+   constraints, or -1 for a code or kind outside the tables. */
+int64_t cfc_line_constraints(int64_t m, const double *scales, const int8_t *codes, const int64_t *kinds,
+                             const double *cons, const double *G, const double *E, double rtol, double ef,
+                             double around, double *out, int64_t *iout)
+{
+    const int64_t m3 = 3 * m, m2 = 2 * m;
+    const double *sv = scales, *ss = scales + m3, *fv = scales + 2 * m3, *fs = scales + 3 * m3;
+    double *tv = out, *ts = out + m3;
+    double *csgn = out + 2 * m3, *c = csgn + m2, *dc = c + m2, *tolv = dc + m2, *tols = tolv + m2;
+    int64_t *cidx = iout, *cnode = iout + m2;
+    double smax = m3 ? sv[0] : 0.0;
+    for (int64_t i = 0; i < m3; i++) {
+        double v = rtol * sv[i] + 1e-300, r = rtol * ss[i] + 1e-300;
+        if (E) {
+            v = v + ef * E[2 * i];
+            r = r + ef * E[2 * i + 1];
+        }
+        tv[i] = v + fv[i];
+        ts[i] = r + fs[i];
+        if (sv[i] > smax || sv[i] != sv[i])  /* (NaN stays: NumPy's max propagates it) */
+            smax = sv[i];
+    }
+    int64_t k = 0;
+    for (int64_t i = 0; i < m; i++) {
+        const int64_t code = codes[i], kind = kinds[i];
+        if (code < 0 || code > 3 || kind < 0 || kind > 2)
+            return -1;
+        for (int64_t q = 0; q < 3; q++) {
+            const double s = cons[(code * 3 + kind) * 3 + q];
+            if (s == 0.0)
+                continue;
+            const int64_t j = q * m + i;
+            const double d = s * G[2 * j + 1];
+            cidx[k] = j;
+            cnode[k] = i;
+            csgn[k] = s;
+            c[k] = s * G[2 * j];
+            dc[k] = d;
+            tolv[k] = tv[j] + around * fabs(d);
+            tols[k] = ts[j];
+            k++;
+        }
+    }
+    out[2 * m3 + 5 * m2] = smax;
+    return k;
+}
+/* The first root of a branch's decreasing constraints from alpha0 in the direction s (exact._exit):
+   among the constraints with s dc < -tol_s, t = max(0, (c + (alpha0 - aref) dc) / rate) with
+   rate = -s dc, j the first smallest; a = alpha0 + s t_j; none when s (a - bound) >= 0 or when
+   s (bound - a) <= err_j, err = (tol_v + |a - aref| tol_s) / rate + ulps spacing(max(|a|, 1));
+   else the tied ones, t - t_j <= err + err_j, into tied (ascending), a and err_j into res.
+   Returns their count, 0 for none, -1 for a NaN root (the caller's NumPy form decides then). */
+int64_t cfc_exit(int64_t k, const double *c, const double *dc, const double *tolv, const double *tols, int64_t s,
+                 double alpha0, double aref, double bound, double ulps, int64_t *tied, double *res)
+{
+    const double sd = (double)s, d0 = alpha0 - aref;
+    int64_t j = -1;
+    double tj = 0.0;
+    for (int64_t i = 0; i < k; i++) {
+        const double sdc = sd * dc[i];
+        if (!(sdc < -tols[i]))
+            continue;
+        double t = (c[i] + d0 * dc[i]) / (-sdc);
+        if (t != t)
+            return -1;
+        t = t > 0.0 ? t : 0.0;
+        if (j < 0 || t < tj) {
+            j = i;
+            tj = t;
+        }
+    }
+    if (j < 0)
+        return 0;
+    const double a = alpha0 + sd * tj;
+    if (sd * (a - bound) >= 0.0)
+        return 0;
+    double x = fabs(a);
+    x = x > 1.0 ? x : 1.0;
+    const double au = ulps * (nextafter(x, INFINITY) - x), da = fabs(a - aref);
+    const double ej = (tolv[j] + da * tols[j]) / (-sd * dc[j]) + au;
+    if (sd * (bound - a) <= ej)
+        return 0;
+    int64_t n = 0;
+    for (int64_t i = 0; i < k; i++) {
+        const double sdc = sd * dc[i];
+        if (!(sdc < -tols[i]))
+            continue;
+        const double rate = -sdc;
+        double t = (c[i] + d0 * dc[i]) / rate;
+        t = t > 0.0 ? t : 0.0;
+        const double e = (tolv[i] + da * tols[i]) / rate + au;
+        if (t - tj <= e + ej)
+            tied[n++] = i;
+    }
+    res[0] = a;
+    res[1] = ej;
+    return n;
+}
+/* cfc_branch_small, then the branch's scales (cfc_line_scales, into lout[0:12m]) and its
+   tolerances and constraints (cfc_line_constraints, into lout[12m:] and liout): what the exact
+   method forms of a branch, in one call.  Returns cfc_branch_small's status, or -2 for a code or
+   kind outside the tables. */
+int cfc_branch_line(int64_t m, const double *S, const double *St, int64_t lds, const uint8_t *imposed,
+                    const int8_t *codes, const double *F, const double *w, double rho, int factor, int64_t *nk,
+                    double *lu, int32_t *piv, int64_t *rows, int64_t *slip, double *coef, double *L, double *G,
+                    double *E, double *work, int64_t *iwork, const double *sq, double unit, const int64_t *kinds,
+                    const double *cons, double rtol, double ef, double around, double *lout, int64_t *liout)
+{
+    int st = cfc_branch_small(m, S, St, lds, imposed, codes, F, w, rho, factor, nk, lu, piv, rows, slip, coef, L, G,
+                              E, work, iwork);
+    if (st)
+        return st;
+    cfc_line_scales(m, w, L, sq, imposed, rho, unit, lout);
+    const int64_t k = cfc_line_constraints(m, lout, codes, kinds, cons, G, E, rtol, ef, around, lout + 12 * m,
+                                           liout);
+    if (k < 0)
+        return -2;
+    liout[4 * m] = k;
+    return 0;
+}
 /* The point tableau of the exact method's lexicographic walk (condensed.PointTableau): A is
    4k x nc, column-major (lda), nc = p + 2k: rows 2j, 2j + 1 = node j's X rows (normal,
    tangential), rows 2k + 2j, 2k + 2j + 1 = the same of S X.  cfc_tableau_change: node j from
@@ -803,6 +933,15 @@ def _load():
     lib.cfc_branch_small.restype = ctypes.c_int
     lib.cfc_line_scales.argtypes = [i64, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double, ptr]
     lib.cfc_line_scales.restype = None
+    lib.cfc_branch_line.argtypes = lib.cfc_branch_small.argtypes + [ptr, ctypes.c_double, ptr, ptr, ctypes.c_double,
+                                                                     ctypes.c_double, ctypes.c_double, ptr, ptr]
+    lib.cfc_branch_line.restype = ctypes.c_int
+    lib.cfc_line_constraints.argtypes = [i64, ptr, ptr, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double,
+                                         ctypes.c_double, ptr, ptr]
+    lib.cfc_line_constraints.restype = i64
+    lib.cfc_exit.argtypes = [i64, ptr, ptr, ptr, ptr, i64, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                             ctypes.c_double, ptr, ptr]
+    lib.cfc_exit.restype = i64
     lib.cfc_tableau_change.argtypes = [i64, i64, ptr, i64, i64, ctypes.c_int, ctypes.c_int, ctypes.c_double, ptr,
                                        ctypes.c_double, ctypes.c_int, ptr]
     lib.cfc_tableau_change.restype = ctypes.c_int
@@ -926,6 +1065,71 @@ def line_scales(W: np.ndarray, L: np.ndarray, sq: np.ndarray, imposed: np.ndarra
     return out
 
 
+def line_constraints(scales: np.ndarray, codes: np.ndarray, kinds: np.ndarray, cons: np.ndarray, G: np.ndarray,
+                     E: Optional[np.ndarray], rtol: float, ef: float, around: float) -> Optional[tuple]:
+    """A branch's tolerances and constraints in one call (``cfc_line_constraints``; the NumPy form
+    is :class:`cfcontact.exact._Line`'s): from its scales (:func:`line_scales`' 4 x 3m), the
+    states ``codes`` (int8, m), the node kinds ``kinds`` (int64, m), the constraint signs
+    ``cons`` (4 x 3 x 3 float64, C-ordered), the indicators' values and rates G and their
+    refinement's change E (3m x 2, C-ordered, or None), rtol, the error factor ef and around =
+    what alpha's rounding adds per unit rate.  Returns (tv, ts, cidx, csgn, cnode, c, dc, tol_v,
+    tol_s, max(scale_v)), or None without the compiled library."""
+    lib = library()
+    if lib is None:
+        return None
+    m = codes.size
+    m3 = 3 * m
+    if (scales.shape != (4, m3) or not scales.flags.c_contiguous or scales.dtype != np.float64
+            or codes.dtype != np.int8 or kinds.dtype != np.int64 or kinds.shape != (m,) or not kinds.flags.c_contiguous
+            or cons.shape != (4, 3, 3) or cons.dtype != np.float64 or not cons.flags.c_contiguous):
+        raise ValueError(f"line_constraints takes scales (4, {m3}) float64, codes int8, kinds ({m},) int64 and cons "
+                         f"(4, 3, 3) float64, C-ordered; got {scales.shape} {scales.dtype}, {codes.dtype}, "
+                         f"{kinds.shape} {kinds.dtype}, {cons.shape} {cons.dtype}")
+    codes = np.ascontiguousarray(codes)
+    G = np.ascontiguousarray(G, dtype=np.float64)
+    if E is not None:
+        E = np.ascontiguousarray(E, dtype=np.float64)
+    if G.shape != (m3, 2) or (E is not None and E.shape != (m3, 2)):
+        raise ValueError(f"line_constraints takes G and E ({m3}, 2); got {G.shape}, {None if E is None else E.shape}")
+    out = np.empty(6 * m + 10 * m + 1)
+    iout = np.empty(4 * m, dtype=np.int64)
+    k = lib.cfc_line_constraints(m, scales.ctypes.data, codes.ctypes.data, kinds.ctypes.data, cons.ctypes.data,
+                                 G.ctypes.data, None if E is None else E.ctypes.data, rtol, ef, around,
+                                 out.ctypes.data, iout.ctypes.data)
+    if k < 0:
+        raise ValueError("line_constraints: a state code outside 0-3 or a node kind outside 0-2")
+    m2 = 2 * m
+    b = 6 * m
+    return (out[:m3], out[m3:b], iout[:k], out[b:b + k], iout[m2:m2 + k], out[b + m2:b + m2 + k],
+            out[b + 2 * m2:b + 2 * m2 + k], out[b + 3 * m2:b + 3 * m2 + k], out[b + 4 * m2:b + 4 * m2 + k],
+            float(out[-1]))
+
+
+def first_root(c: np.ndarray, dc: np.ndarray, tol_v: np.ndarray, tol_s: np.ndarray, s: int, alpha0: float,
+               aref: float, bound: float, ulps: float):
+    """The first root of a branch's decreasing constraints (``cfc_exit``; the NumPy form is
+    :func:`cfcontact.exact._exit`'s): (alpha*, tied positions, uncertainty of alpha*), (None,
+    None, None) when none lies before ``bound``; False when the compiled library is missing or
+    a root is NaN (the caller's NumPy form decides then).  c, dc, tol_v, tol_s: contiguous
+    float64 arrays of one size."""
+    lib = library()
+    if lib is None:
+        return False
+    k = c.size
+    if not (dc.size == tol_v.size == tol_s.size == k and all(
+            a.dtype == np.float64 and a.flags.c_contiguous for a in (c, dc, tol_v, tol_s))):
+        raise ValueError("first_root takes four contiguous float64 arrays of one size")
+    tied = np.empty(k, dtype=np.int64)
+    res = np.empty(2)
+    n = lib.cfc_exit(k, c.ctypes.data, dc.ctypes.data, tol_v.ctypes.data, tol_s.ctypes.data, s, alpha0, aref, bound,
+                     ulps, tied.ctypes.data, res.ctypes.data)
+    if n < 0:
+        return False
+    if n == 0:
+        return None, None, None
+    return float(res[0]), tied[:n], float(res[1])
+
+
 class BranchKernel:
     """The exact method's branch data for small reduced systems in one compiled call
     (``cfc_branch_small``): the reduced matrix of a state, its LU, the solve for the values' and
@@ -963,21 +1167,35 @@ class BranchKernel:
         support) as :meth:`~cfcontact.condensed.CondensedSolver._factor_reduced` keeps it: formed
         here when ``entry`` is None, else the given one is used.  None when the reduced matrix is
         singular."""
+        res = self._run(imposed, codes, W, rho, entry, None, 0.0)
+        return None if res is None else res[:4]
+
+    def line(self, imposed: np.ndarray, codes: np.ndarray, W: np.ndarray, rho: float, entry, request: "LineRequest",
+             around: float):
+        """(entry, L, G, E, constraints): :meth:`__call__`'s, and in the same call the branch's
+        tolerances and constraints as :func:`line_constraints` gives them (from :func:`line_scales`'
+        scales) for ``request``'s data and ``around``; None when the reduced matrix is singular."""
+        return self._run(imposed, codes, W, rho, entry, request, around)
+
+    def _run(self, imposed, codes, W, rho, entry, request, around):
         m, n2 = self.m, 2 * self.m
         if (W.shape != (n2, 2) or W.dtype != np.float64 or not W.flags.c_contiguous or imposed.shape != (n2,)
                 or imposed.dtype != np.bool_ or codes.shape != (m,) or codes.dtype != np.int8):
             raise ValueError(f"cfc_branch_small takes W ({n2}, 2) float64 C-ordered, imposed ({n2},) bool and "
                              f"codes ({m},) int8; got {W.shape} {W.dtype}, {imposed.shape} {imposed.dtype}, "
                              f"{codes.shape} {codes.dtype}")
-        out = np.empty(16 * m + max(m, 1))  # L (2m x 2), G (3m x 2), E (3m x 2), then coef (m)
-        base = out.ctypes.data
+        # out: L (2m x 2), G (3m x 2), E (3m x 2), coef (m); with a request then the scales (12m),
+        # tv, ts (6m), the constraints' csgn, c, dc, tol_v, tol_s (10m), max(sv).  ints: rows (2m),
+        # slip (m), (k, ns); with a request then cidx, cnode (4m), their count
+        n_out = 16 * m + max(m, 1)
+        out = np.empty(n_out + (28 * m + 1 if request is not None else 0))
+        ints = np.empty(n2 + m + 2 + (4 * m + 1 if request is not None else 0), dtype=np.int64)
+        base, ib = out.ctypes.data, ints.ctypes.data
         S_addr, St_addr, F_addr, work, iwork = self._addr
         if entry is None:
             k = int(np.count_nonzero(imposed))
             lu = np.empty((k, k), order="F")
             piv = np.empty(k, dtype=np.int32)
-            ints = np.empty(n2 + m + 2, dtype=np.int64)  # rows (2m), slip (m), (k, ns)
-            ib = ints.ctypes.data
             args = (ib + 8 * (n2 + m), lu.ctypes.data, piv.ctypes.data, ib, ib + 8 * n2, base + 8 * 16 * m)
         else:
             lu, piv, rows, slip, coef, _ = entry
@@ -985,18 +1203,51 @@ class BranchKernel:
             lu, piv = np.asfortranarray(lu, dtype=np.float64), np.ascontiguousarray(piv, dtype=np.int32)
             rows, slip = np.ascontiguousarray(rows, dtype=np.int64), np.ascontiguousarray(slip, dtype=np.int64)
             coef = np.ascontiguousarray(coef, dtype=np.float64)
-            nk = np.array([rows.size, slip.size], dtype=np.int64)
-            args = (nk.ctypes.data, lu.ctypes.data, piv.ctypes.data, rows.ctypes.data, slip.ctypes.data,
+            ints[n2 + m] = rows.size
+            ints[n2 + m + 1] = slip.size
+            args = (ib + 8 * (n2 + m), lu.ctypes.data, piv.ctypes.data, rows.ctypes.data, slip.ctypes.data,
                     coef.ctypes.data)
-        status = self._lib.cfc_branch_small(m, S_addr, St_addr, max(n2, 1), imposed.ctypes.data, codes.ctypes.data,
-                                            F_addr, W.ctypes.data, rho, entry is None, *args, base, base + 8 * 4 * m,
-                                            base + 8 * 10 * m, work, iwork)
+        common = (m, S_addr, St_addr, max(n2, 1), imposed.ctypes.data, codes.ctypes.data, F_addr, W.ctypes.data, rho,
+                  entry is None, *args, base, base + 8 * 4 * m, base + 8 * 10 * m, work, iwork)
+        if request is None:
+            status = self._lib.cfc_branch_small(*common)
+        else:
+            sq, kinds, cons = request.addresses
+            status = self._lib.cfc_branch_line(*common, sq, request.unit, kinds, cons, request.rtol, request.ef,
+                                               around, base + 8 * n_out, ib + 8 * (n2 + m + 2))
+            if status == -2:
+                raise ValueError("cfc_branch_line: a state code outside 0-3 or a node kind outside 0-2")
         if status:
             return None
         if entry is None:
-            k, ns = int(ints[-2]), int(ints[-1])
+            k, ns = int(ints[n2 + m]), int(ints[n2 + m + 1])
             rows, slip = ints[:k], ints[n2:n2 + ns]
             coef = out[16 * m:16 * m + ns]
             entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
-        out = out[:16 * m].reshape(8 * m, 2)
-        return entry, out[:n2], out[n2:5 * m], out[5 * m:]
+        L2 = out[:16 * m].reshape(8 * m, 2)
+        cons = None
+        if request is not None:
+            b, ic = n_out + 12 * m, n2 + m + 2
+            nc = int(ints[ic + 4 * m])
+            m3, b2 = 3 * m, n_out + 18 * m
+            cons = (out[b:b + m3], out[b + m3:b2], ints[ic:ic + nc], out[b2:b2 + nc], ints[ic + n2:ic + n2 + nc],
+                    out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
+                    out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[-1]))
+        return entry, L2[:n2], L2[n2:5 * m], L2[5 * m:], cons
+
+
+class LineRequest:
+    """What :meth:`BranchKernel.line` needs beyond the branch: sqrt(diag S), the node kinds and
+    the constraint signs (kept alive here, read by address), the data's rounding unit, rtol and
+    the error factor (see :func:`line_scales`, :func:`line_constraints`)."""
+
+    def __init__(self, sq: np.ndarray, kinds: np.ndarray, cons: np.ndarray, unit: float, rtol: float, ef: float):
+        self.sq = np.ascontiguousarray(sq, dtype=np.float64)
+        self.kinds = np.ascontiguousarray(kinds, dtype=np.int64)
+        self.cons = np.ascontiguousarray(cons, dtype=np.float64)
+        if self.cons.shape != (4, 3, 3) or self.kinds.shape != (self.sq.size // 2,):
+            raise ValueError(f"LineRequest takes kinds ({self.sq.size // 2},) and cons (4, 3, 3); got "
+                             f"{self.kinds.shape}, {self.cons.shape}")
+        self.unit, self.rtol, self.ef = float(unit), float(rtol), float(ef)
+        self.kinds_given = kinds  # (the caller's array, for its check that the request is still its own)
+        self.addresses = (self.sq.ctypes.data, self.kinds.ctypes.data, self.cons.ctypes.data)

@@ -294,38 +294,138 @@ def test_compiled_branch_data_equals_numpy_and_lapack(monkeypatch):
     assert checked > 100
 
 
-def test_compiled_line_scales_equal_numpy(monkeypatch):
-    """The exact method's per-indicator scales and data floors of a branch (cfc_line_scales)
-    against the NumPy form of exact._CondensedData.line, on random states of a model with
-    frictionless and tangent-free nodes (values and rates of the data of different sizes)."""
+def _line_model(seed):
     from cfcontact import exact
     from cfcontact.condensed import CondensedSolver
-    from cfcontact.exact import canonical_codes, sets_from_codes
     from cfcontact.ssnm import SolverOptions
 
-    system = _mixed_system(seed=8)
+    system = _mixed_system(seed=seed)
     solver = CondensedSolver(system, SolverOptions(updates=False))
     W = solver.load_data_many(list(system.loads_numpy()))
-    data = exact._CondensedData(solver, W)
+    kinds = np.ascontiguousarray(exact.node_kinds(system), dtype=np.int64)
+    return system, solver, exact._CondensedData(solver, W), kinds
+
+
+def _random_codes(system, rng):
+    from cfcontact.exact import canonical_codes, sets_from_codes
+
+    codes = rng.integers(0, 4, system.m).astype(np.int8)
+    return canonical_codes(sets_from_codes(codes), system.friction, system.no_tangent).astype(np.int8)
+
+
+def test_compiled_line_equals_numpy(monkeypatch):
+    """A branch of the exact method formed with the compiled kernels (cfc_branch_line: the
+    branch, its per-indicator scales and data floors, tolerances and constraints in one call)
+    against the NumPy/LAPACK form (exact._CondensedData.make_line without the kernels), on random
+    states of a model with frictionless and tangent-free nodes: the same constraints, values,
+    rates and tolerances to rounding (the multipliers' solves differ in their rounding only)."""
+    import cfcontact
+    from cfcontact import condensed, exact
+
+    system, solver, data, kinds = _line_model(8)
     rng = np.random.default_rng(2)
-    for t in range(40):
-        codes = rng.integers(0, 4, system.m).astype(np.int8)
-        codes = canonical_codes(sets_from_codes(codes), system.friction, system.no_tangent).astype(np.int8)
+    calls = []
+    fused = native.BranchKernel.line
+    monkeypatch.setattr(native.BranchKernel, "line", lambda *a: calls.append(1) or fused(*a))
+    checked = 0
+    for t in range(60):
+        codes = _random_codes(system, rng)
         key, alpha = b"s" + codes.tobytes(), float(rng.uniform(-1.0, 2.0))
+        solver._lu.clear()
+        n0 = len(calls)
         try:
-            with_kernel = data.line(codes, key, alpha)
-        except Exception as exc:  # (a singular state: the same both ways)
-            monkeypatch.setattr(native, "line_scales", lambda *a: None)
-            with pytest.raises(type(exc)):
-                data.line(codes, key, alpha)
-            monkeypatch.undo()
+            ln = data.make_line(codes, key, alpha, 1e-10, kinds)
+        except cfcontact.SingularSystemError:
             continue
-        monkeypatch.setattr(native, "line_scales", lambda *a: None)
-        plain = data.line(codes, key, alpha)
-        monkeypatch.undo()
-        # (lam, dlam, g, dg, scale_v, scale_s, full, source, eg, floor)
-        for i in (0, 1, 2, 3, 4, 5, 8):
-            np.testing.assert_allclose(with_kernel[i], plain[i], rtol=1e-13, atol=0)
-        for a, b in zip(with_kernel[9], plain[9]):
-            np.testing.assert_array_equal(a, b)
-        assert np.all(plain[4] > 0) and np.any(plain[9][0] == 0) and np.any(plain[9][0] > 0)
+        assert len(calls) == n0 + 1  # (formed by the fused kernel)
+        with monkeypatch.context() as mp:
+            mp.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", 0)
+            mp.setattr(native, "line_scales", lambda *a: None)
+            solver._lu.clear()
+            ref = data.make_line(codes, key, alpha, 1e-10, kinds)
+        for name in ("cidx", "cnode", "csgn"):
+            np.testing.assert_array_equal(getattr(ln, name), getattr(ref, name))
+        size = np.abs(ref.lam).max() + system.rho * np.abs(data.w1).max() + np.abs(data.w2).max()
+        for name in ("lam", "dlam", "g", "dg", "c", "dc"):
+            assert np.all(np.abs(getattr(ln, name) - getattr(ref, name)) <= 1e-12 * size), name
+        for name in ("ind_tv", "ind_ts", "tol_v", "tol_s"):  # (they hold the refinement's measured rounding,
+            np.testing.assert_allclose(getattr(ln, name), getattr(ref, name), rtol=1e-2, err_msg=name)  # its own)
+        assert ln.scale == pytest.approx(ref.scale, rel=1e-12)
+        assert np.any(ref.ind_tv > 1e-10 * ref.scale)  # (the data floors and error estimates count)
+        checked += 1
+    assert checked > 30
+
+
+def test_compiled_constraints_give_the_numpy_bits():
+    """cfc_line_constraints (tolerances and constraints of a branch from its scales) and the same
+    in the fused branch kernel against exact._Line's NumPy arithmetic on the same inputs:
+    bitwise equal (the same operations in the same order)."""
+    import cfcontact
+    from cfcontact import exact
+
+    system, solver, data, kinds = _line_model(5)
+    kernel = solver._branch_kernel()
+    m = system.m
+    rng = np.random.default_rng(7)
+    request = native.LineRequest(data.sqrt_diag, kinds, exact._CONS_SIGN, exact.DATA_ULPS * exact._EPS * system.rho,
+                                 3e-10, exact.ERROR_FACTOR)
+    checked = 0
+    for t in range(60):
+        codes = _random_codes(system, rng)
+        alpha = float(rng.uniform(-3.0, 3.0))
+        W = np.ascontiguousarray(np.column_stack([(1 - alpha) * data.w1 + alpha * data.w2, data.dw]))
+        imposed = solver.imposed_rows(codes)
+        around = exact.ALPHA_ULPS * exact._alpha_ulp(alpha)
+        res = kernel.line(imposed, codes, W, system.rho, None, request, around)
+        if res is None:
+            continue
+        _, L, G, E, fused = res
+        scales = native.line_scales(W, L, data.sqrt_diag, imposed, system.rho, request.unit)
+        alone = native.line_constraints(scales, codes, kinds, exact._CONS_SIGN, G, E, 3e-10, exact.ERROR_FACTOR, around)
+        ref = exact._Line(codes, b"", alpha, L[:, 0], L[:, 1], G[:, 0], G[:, 1], scales[0], scales[1], 3e-10, kinds,
+                          eg=E, floor=(scales[2], scales[3]))
+        expect = (ref.ind_tv, ref.ind_ts, ref.cidx, ref.csgn, ref.cnode, ref.c, ref.dc, ref.tol_v, ref.tol_s, ref.scale)
+        for got in (alone, fused):
+            for a, b in zip(got, expect):
+                np.testing.assert_array_equal(a, b)
+        assert alone[2].size == np.count_nonzero(exact._CONS_SIGN[codes, kinds])
+        checked += 1
+    assert checked > 30
+    with pytest.raises(ValueError):
+        native.line_constraints(scales, np.full(m, 7, dtype=np.int8), kinds, exact._CONS_SIGN, G, E, 1e-10, 16.0, 0.0)
+
+
+def test_compiled_first_root_gives_the_numpy_bits(monkeypatch):
+    """The first root of a branch's decreasing constraints (cfc_exit) against exact._exit's NumPy
+    arithmetic on random branches with repeated roots, roots behind the start, flat constraints
+    and roots beyond the end of the range: the same alpha*, tied set and uncertainty, bitwise."""
+    from types import SimpleNamespace
+
+    from cfcontact import exact
+
+    rng = np.random.default_rng(11)
+    seen = {"none": 0, "tied": 0, "single": 0}
+    for t in range(400):
+        k = int(rng.integers(1, 40))
+        ln = exact._Line.__new__(exact._Line)
+        ln.alpha = float(rng.uniform(-1, 1))
+        ln.dc = rng.standard_normal(k) * 10.0 ** rng.integers(-3, 3, k)
+        ln.dc[rng.random(k) < 0.2] = 0.0
+        roots = rng.choice(rng.uniform(-0.5, 2.0, 4), k)  # (repeated roots)
+        ln.c = -ln.dc * (roots - ln.alpha)
+        ln.tol_v = 1e-12 * rng.random(k)
+        ln.tol_s = 1e-12 * rng.random(k)
+        ctx = SimpleNamespace(lo=-1.0, hi=float(rng.uniform(0.5, 3.0)))
+        s = int(rng.choice([-1, 1]))
+        alpha0 = ln.alpha + float(rng.uniform(0, 0.3)) * s
+        got = exact._exit(ctx, ln, alpha0, s)
+        with monkeypatch.context() as mp:
+            mp.setattr(native, "first_root", lambda *a: False)
+            ref = exact._exit(ctx, ln, alpha0, s)
+        assert type(got[0]) is type(ref[0]) and got[0] == ref[0] and got[2] == ref[2]
+        if ref[0] is None:
+            seen["none"] += 1
+        else:
+            np.testing.assert_array_equal(got[1], ref[1])
+            seen["tied" if ref[1].size > 1 else "single"] += 1
+    assert min(seen.values()) > 20, seen
