@@ -360,7 +360,8 @@ class CondensedSolver:
         self._K_local = None  # SciPy copy of K's local rows, for K_times (formed when first needed)
         N, T = system.contact_maps()
         self.B = sp.vstack([N, T]).tocsr()
-        self.B_local = self.B[:, self.r0:self.r1].tocsr()  # 2m x nloc
+        # 2m x nloc (B itself on one rank)
+        self.B_local = self.B if (self.r0, self.r1) == (0, self.n) else self.B[:, self.r0:self.r1].tocsr()
         self.F = system.friction_vector
         self._F0 = self.F == 0.0
         self.no_tangent = np.asarray(system.no_tangent, dtype=bool)
@@ -775,14 +776,26 @@ class CondensedSolver:
         if m2 == 0:
             return None
         fs = self.system.loads_numpy()
-        R = np.empty((m2 + 2, self.n))
-        R[:m2] = self.B.toarray()
-        R[m2], R[m2 + 1] = fs
-        X = np.empty_like(R)
+        B = self.B
+        if not B.has_canonical_format:
+            B = B.copy()
+            B.sum_duplicates()
+        X = np.empty((m2 + 2, self.n))
         fm = self.ksp.getPC().getFactorMatrix()
+        # B's rows scattered one at a time into one work vector (not a dense copy of B: at the
+        # seed's size its fresh pages cost more than the scatter)
+        b = np.zeros(self.n)
+        b0 = np.zeros(self.n)
         try:
-            for j in range(m2 + 2):
-                self._on_arrays(fm.solveForward, R[j], X[j])
+            for j in range(m2):
+                cols = B.indices[B.indptr[j]:B.indptr[j + 1]]
+                b[cols] = B.data[B.indptr[j]:B.indptr[j + 1]]
+                if j == 0:
+                    b0[:] = b
+                self._on_arrays(fm.solveForward, b, X[j])
+                b[cols] = 0.0
+            for j, f in enumerate(fs):
+                self._on_arrays(fm.solveForward, np.array(f, dtype=float), X[m2 + j])
         except PETSc.Error as exc:  # a factorization without MatForwardSolve: full solves instead
             log.info("forward substitution unavailable (PETSc error %s); S by solves", exc.ierr)
             return None
@@ -798,7 +811,6 @@ class CondensedSolver:
         self._on_arrays(fm.solveBackward, X[0], z)
         self.stats.linear_solves += 1
         self._on_arrays(self.system.K.mult, z, Kz)
-        b0 = R[0]
         nb, nz = np.abs(b0).max(), np.abs(z).max()
         knorm = self.system.K.norm(PETSc.NormType.INFINITY)
         if not (np.isfinite(z).all() and knorm * nz <= 1e14 * nb):

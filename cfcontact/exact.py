@@ -52,6 +52,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import logging
+import math
 import time
 from typing import Optional
 
@@ -222,7 +223,7 @@ class _Unresolved(Exception):
 
 def _alpha_ulp(alpha) -> float:
     """One unit in the last place of alpha's scale (see ALPHA_ULPS)."""
-    return float(np.spacing(max(abs(float(alpha)), 1.0)))
+    return math.ulp(max(abs(float(alpha)), 1.0))  # (np.spacing's value for x >= 1, without its overhead)
 
 
 def _alpha_rounding(alpha, dc):
