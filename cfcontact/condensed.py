@@ -1317,6 +1317,26 @@ class CondensedSolver:
         E = np.abs(self._ind(D, np.zeros_like(W), SD, imposed))
         return (L, G, E) if line is None else (L, G, E, None)
 
+    def branch_kernel(self):
+        """The compiled kernel that forms the exact method's branches here
+        (:class:`cfcontact.native.BranchKernel`), or None: updates in use, 2m above
+        BRANCH_KERNEL_MAX_ROWS, or no compiled library."""
+        if self.use_updates or 2 * self.m > BRANCH_KERNEL_MAX_ROWS:
+            return None
+        return self._branch_kernel()
+
+    def has_factorization(self, key: bytes) -> bool:
+        """Is a reduced system's factorization kept under ``key``?"""
+        return key in self._lu
+
+    def adopt_factorization(self, key: bytes, entry: tuple):
+        """Keep a reduced system's factorization that the branch kernel formed outside
+        :meth:`branch_data` (``entry`` as :meth:`_factor_reduced` keeps it), counted as
+        :meth:`branch_data` counts its own: one factorization, four dense solves."""
+        self.stats.dense_factorizations += 1
+        self.stats.dense_solves += 4
+        self._keep_lu(key, entry)
+
     def _branch_kernel(self):
         """The compiled branch kernel for this S and F (:class:`cfcontact.native.BranchKernel`), or
         None without the compiled library."""

@@ -139,6 +139,9 @@ APEX_RTOL = 1e-10
 #: Cross an apex met along the path by its ray (:func:`_apex_crossing`); False leaves it to the
 #: lexicographic rule (benchmark Part D measures that rule on such points of m nodes).
 APEX_RULE = True
+#: Take ordinary transitions through the compiled step (:class:`cfcontact.native.OrdinaryStep`,
+#: where the branch kernel forms the branches): the same path as the general form, faster.
+ORDINARY_COMPILED = True
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -358,6 +361,7 @@ class _CondensedData:
         m = self.dw.size // 2
         self._rows3 = np.concatenate([np.arange(m), m + np.arange(m), m + np.arange(m)])
         self._request = None  # what the compiled branch kernel needs to form a branch's constraints too
+        self._stepper = None  # the compiled ordinary transition (ordinary_step)
 
     def _data_scale(self, w, w_max, lam) -> np.ndarray:
         """Per row i of B u (2m), the size of the terms that w_i - (S lam)_i sums: |w_i| plus the
@@ -387,12 +391,8 @@ class _CondensedData:
             # (formed only if the branch is corrected against K: most never are)
             true = ((lambda: own([alpha], rates=1)) if own else
                     (lambda: np.column_stack([(1.0 - alpha) * f1 + alpha * f2, f2 - f1])), (True, False))
-        request = self._request
-        if request is None or request.rtol != rtol or request.kinds_given is not kinds:
-            request = self._request = native.LineRequest(self.sqrt_diag, kinds, _CONS_SIGN, DATA_ULPS * _EPS * self.rho,
-                                                         rtol, ERROR_FACTOR)
         L, G, Eg, cons = self.solver.branch_data(W, key, codes, refine=True, true=true,
-                                                 line=(request, ALPHA_ULPS * _alpha_ulp(alpha)))
+                                                 line=(self._line_request(rtol, kinds), ALPHA_ULPS * _alpha_ulp(alpha)))
         # each indicator's own scale: the multipliers', plus rho times the data's for those that
         # read a free row of B u (an open node's gap, a slipping or open node's slip); the others'
         # B u rows are equations of the branch, exactly zero (CondensedSolver._ind); and the data's
@@ -401,11 +401,7 @@ class _CondensedData:
         lam, dlam = L[:, 0], L[:, 1]
         g, dg = G[:, 0], G[:, 1]
         solver = self.solver
-
-        def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
-            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0], imposed, (True, False))
-            return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
-
+        full = self._full(lam, dlam, alpha, imposed)
         if cons is not None:  # (formed by the compiled kernel with the branch)
             return _Line.compiled(codes, key, alpha, lam, dlam, g, dg, cons, full, solver)
         if Eg is None:
@@ -428,6 +424,58 @@ class _CondensedData:
             free = (~imposed).take(rows3)
             floor = ((unit * w_max) * free, (unit * self.dw_max) * free)
         return _Line(codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, kinds, full, solver, Eg, floor=floor)
+
+    def _full(self, lam, dlam, alpha, imposed):
+        """The function that forms a branch's (Y_ref, dY) with displacements when asked."""
+        solver = self.solver
+
+        def full():  # u_ref = K^-1 (f(alpha) - B^T lam), u' = (u(alpha+1) - u(alpha)) [f affine]
+            U = solver.displacements(np.column_stack([lam, lam + dlam]), [alpha, alpha + 1.0], imposed, (True, False))
+            return np.concatenate([U[:, 0], lam]), np.concatenate([U[:, 1] - U[:, 0], dlam])
+
+        return full
+
+    def _line_request(self, rtol, kinds):
+        """What the compiled kernel needs to form a branch's constraints with it (kept per rtol and
+        node kinds)."""
+        request = self._request
+        if request is None or request.rtol != rtol or request.kinds_given is not kinds:
+            request = self._request = native.LineRequest(self.sqrt_diag, kinds, _CONS_SIGN, DATA_ULPS * _EPS * self.rho,
+                                                         rtol, ERROR_FACTOR)
+        return request
+
+    def ordinary_step(self, ln: _Line, s: int, alpha0: float, bound: float, rtol: float, kinds, lines) -> tuple:
+        """An ordinary transition of the branch ln (direction s, from alpha0) in one compiled call
+        (:class:`cfcontact.native.OrdinaryStep`): (1, None) when the path ends before ``bound``,
+        (0, (alpha*, its uncertainty, j, node, indicator, e, d, next line)) for an ordinary
+        transition, (2, None) for anything the general form must decide -- also where the kernel
+        is not used here, where the next branch is known already (its factorization kept, or its
+        line in ``lines``, the run's cache by (codes, alpha): the general form uses those) or
+        where it needs a correction against K."""
+        solver = self.solver
+        kernel = solver.branch_kernel()
+        if kernel is None:
+            return 2, None
+        request = self._line_request(rtol, kinds)
+        stepper = self._stepper
+        if stepper is None or stepper.kernel is not kernel or stepper.request is not request:
+            stepper = self._stepper = native.OrdinaryStep(kernel, request, _PIVOT, self.w1, self.w2, self.dw,
+                                                          solver.no_tangent)
+        status, r = stepper(ln.c, ln.dc, ln.tol_v, ln.tol_s, ln.cidx, ln.cnode, ln.g, ln.dg, ln.ind_tv, ln.ind_ts,
+                            ln.codes, ln.alpha, s, alpha0, bound, ALPHA_ULPS, self.rho)
+        if status:
+            return status, None
+        a_star, a_err, j, node, ind, old, new, e, d, codes, imposed, W, entry, L, G, E, cons = r
+        raw = codes.tobytes()
+        key = b"exact:" + raw
+        if (solver.has_factorization(key) or (raw, a_star) in lines
+                or (self.loads is not None and solver.needs_true(W, G, L))):
+            return 2, None
+        solver.adopt_factorization(key, entry)
+        lam, dlam = L[:, 0], L[:, 1]
+        nxt = _Line.compiled(codes, key, a_star, lam, dlam, G[:, 0], G[:, 1], cons,
+                             self._full(lam, dlam, a_star, imposed), solver)
+        return 0, (a_star, a_err, j, node, ind, e, d, nxt)
 
     def _rate_columns(self, J):
         """The right-hand sides of an intermediate branch of a degenerate point: the rates' w2 - w1
@@ -522,6 +570,8 @@ class _FullData:
 class _Context:
     """What one run needs: system, backend, options, alpha range, caches, visited branches."""
 
+    fast = False  # (see __init__; subclasses with other data do not take the compiled step)
+
     def __init__(self, system, solver, opts, lo, hi, rtol, W=None, callback=None):
         self.system, self.solver, self.opts, self.callback = system, solver, opts, callback
         self.lo, self.hi, self.rtol = lo, hi, rtol
@@ -543,6 +593,8 @@ class _Context:
             self.condensed = False
         self.visited: dict = {}  # digest of canonical codes -> (orientation, alpha) of its first entry
         self._lines: dict = {}  # (key, alpha) -> _Line, for the current transition point
+        # ordinary transitions in one compiled call (_ordinary_transition): condensed data, no apex
+        self.fast = type(self.data) is _CondensedData and self.data.apex is None and ORDINARY_COMPILED
         self.E = None  # perturbation loads (n x J)
         self._point = None  # the degenerate point being crossed: [its first branch, pivots so far, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
@@ -1176,6 +1228,39 @@ def _shift(ln: _Line, delta: float):
         ln._Y = (ln._Y[0] + delta * ln._Y[1], ln._Y[1])
 
 
+def _ordinary_transition(ctx: _Context, path, branch, ln: _Line, s: int, alpha_from: float):
+    """What :func:`_exit` and :func:`_transition_point` give for an ordinary transition (a single
+    constraint vanishes, its facet is decided by its own indicators, the next branch is entered by
+    that constraint with a rate and no other of its constraints vanishes there), from one
+    compiled call: (alpha*, tied, (line, d, transition)) -- or (None, None) where the path ends
+    before the end of the range; None for anything else (the general form then decides)."""
+    status, r = ctx.data.ordinary_step(ln, s, alpha_from, ctx.hi if s > 0 else ctx.lo, ctx.rtol, ctx._kinds,
+                                       ctx._lines)
+    if status == 1:
+        return None, None
+    if status:
+        return None
+    a_star, a_err, j, node, ind, e, d, nxt = r
+    a_root = a_star
+    ctx.stats["pivots"] += 1
+    if len(ctx._lines) > 64:  # (cached as Context.line caches it)
+        ctx._lines.clear()
+    ctx._lines[(nxt.codes.tobytes(), a_star)] = nxt
+    # the point from the more precise side, as _transition_point takes it
+    de = float(nxt.dc[e])
+    delta = -float(nxt.c[e]) / de
+    if (float(nxt.tol_v[e]) / abs(de) < a_err and abs(delta) <= 2.0 * a_err
+            and s * (a_star + delta - alpha_from) >= 0 and ctx.lo <= a_star + delta <= ctx.hi):
+        ctx._lines.pop((nxt.codes.tobytes(), a_star), None)
+        _shift(nxt, delta)
+        a_star = nxt.alpha
+    changes = _changes(ln, nxt, [{"node": node, "set": SET_NAMES[ind]}])
+    tr = Transition(len(path.transitions), a_star, "transversal" if d == s else "fold", changes[0]["node"],
+                    changes[0]["set"], branch.index, len(path.branches), bracket=(a_star, a_star), changes=changes,
+                    pivots=[])
+    return a_root, np.array([j]), (nxt, d, tr)
+
+
 def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: float, tied, a_err: float,
                       alpha_from: float, start_key=None):
     """Decide the continuation at the transition point a_star (uncertainty a_err, reached on ln from
@@ -1219,7 +1304,7 @@ def _transition_point(ctx: _Context, path, branch, ln: _Line, s: int, a_star: fl
         delta = -float(nxt.c[e]) / de
         if (float(nxt.tol_v[e]) / abs(de) < a_err and abs(delta) <= 2.0 * a_err
                 and s * (a_star + delta - alpha_from) >= 0 and ctx.lo <= a_star + delta <= ctx.hi):
-            ctx._lines.pop((nxt.key, float(a_star)), None)
+            ctx._lines.pop((nxt.codes.tobytes(), float(a_star)), None)  # (Context.line's key)
             _shift(nxt, delta)
             a_star = nxt.alpha
     alternatives, choice = [], 0
@@ -1403,7 +1488,12 @@ class _Walk:
         path leaves the alpha range, or ("status", status) when the walk cannot go on."""
         ctx, path, ln, s, branch = self.ctx, self.path, self.ln, self.s, self.branch
         ctx.visited.setdefault(_digest(ln.codes.tobytes()), (s, self.alpha))
-        a_star, tied, a_err = _exit(ctx, ln, self.alpha, s)
+        fast = (_ordinary_transition(ctx, path, branch, ln, s, self.alpha)
+                if ctx.fast and len(path.transitions) - self.n_trans0 < ctx.opts.max_transitions else None)
+        if fast is None:
+            a_star, tied, a_err = _exit(ctx, ln, self.alpha, s)
+        else:
+            a_star, tied = fast[:2]
         if a_star is None:
             a_end = ctx.hi if s > 0 else ctx.lo
             branch.alpha_exit = a_end
@@ -1422,16 +1512,19 @@ class _Walk:
                                          f"max_transitions to trace further)", branch.index))
             return "status", "max_transitions"
         at = ln
-        if len(tied) > 1:
-            at, a_star, tied, a_err = _recenter(ctx, ln, s, a_star, self.alpha)
-            if not tied.size:  # nothing vanishes when looked at closely: go on (rare)
-                at, a_star, tied, a_err = ln, a_star, tied, a_err
-        res = _transition_point(ctx, path, branch, at, s, a_star, tied, a_err, self.alpha, self.start_key)
-        if isinstance(res, str):
-            branch.alpha_exit = a_star
-            path.add_point(branch, a_star)
-            return "status", res
-        nxt, d, tr = res
+        if fast is not None:
+            nxt, d, tr = fast[2]
+        else:
+            if len(tied) > 1:
+                at, a_star, tied, a_err = _recenter(ctx, ln, s, a_star, self.alpha)
+                if not tied.size:  # nothing vanishes when looked at closely: go on (rare)
+                    at, a_star, tied, a_err = ln, a_star, tied, a_err
+            res = _transition_point(ctx, path, branch, at, s, a_star, tied, a_err, self.alpha, self.start_key)
+            if isinstance(res, str):
+                branch.alpha_exit = a_star
+                path.add_point(branch, a_star)
+                return "status", res
+            nxt, d, tr = res
         a_star = tr.alpha
         key = _digest(nxt.codes.tobytes())
         if key in ctx.visited and (key, d) != self.start_key:
@@ -1836,7 +1929,7 @@ def _apex_start(ctx: _Context, path, alpha, s, monitor=None, event=True) -> Opti
         return None
     # at the apex the solution is zero: its values there are the rounding of data that vanish (at an
     # alpha that is itself rounded, of the size of the rates times an ulp); the branch is the ray
-    ctx._lines.pop((ln.key, float(alpha)), None)
+    ctx._lines.pop((ln.codes.tobytes(), float(alpha)), None)  # (Context.line's key)
     ln.lam, ln.g, ln.c = np.zeros_like(ln.lam), np.zeros_like(ln.g), np.zeros_like(ln.c)
     if not event:
         return ln

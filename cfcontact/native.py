@@ -18,9 +18,13 @@
   of S read, 1.4-1.6x faster than :func:`gemv2` at 1728-8000 rows, as accurate (BLAS' symv,
   a column at a time, had made Part B's path only 4 % faster).
 * a small branch of the exact method in one call (:class:`BranchKernel`: reduced matrix, LU,
-  solve with one refinement step, indicators) and its indicators' scales (:func:`line_scales`):
-  for small reduced systems NumPy's and LAPACK's per-call overhead is most of a branch (73 ->
-  19 us at 2m = 60).
+  solve with one refinement step, indicators; with :meth:`BranchKernel.line` also its
+  indicators' scales, tolerances and constraints, :func:`line_scales`,
+  :func:`line_constraints`): for small reduced systems NumPy's and LAPACK's per-call overhead
+  is most of a branch (73 -> 19 us at 2m = 60).
+* the first root of a branch's constraints (:func:`first_root`) and a whole ordinary
+  transition of the exact method (:class:`OrdinaryStep`: root, facet, next branch, checks),
+  whose Python form was some twenty calls per branch.
 * the rank-one/rank-two update of a degenerate point's tableau and its indicators
   (``cfc_tableau_change``, ``cfc_tableau_indicators``; :class:`cfcontact.condensed.PointTableau`):
   some twenty NumPy and BLAS calls per pivot before.
@@ -734,6 +738,101 @@ int cfc_branch_line(int64_t m, const double *S, const double *St, int64_t lds, c
     liout[4 * m] = k;
     return 0;
 }
+/* One ordinary transition of the exact method (exact._Walk.step through _exit, _resolve and
+   _CondensedData.make_line, in one call): the first root of the branch (c ... indts: its
+   constraints, cidx/cnode, indicators g, dg with strides gs, dgs, and tolerances; codes, aref) from
+   alpha0 in the direction s; where a single constraint vanishes there, its facet (pivot: the
+   table exact._PIVOT, 4 x 3 x 3; an open node closing with friction slips in the direction of
+   its T u where the indicator is measurably nonzero), the next branch at the point (its codes,
+   imposed rows, data W from w1, w2, dw; then cfc_branch_line: the LU into lu (k x k), piv, ints
+   (rows 2m, slip m, (k, ns), then cidx, cnode 4m and their count) and out (L, G, E, coef, then
+   the scales, tolerances and constraints)), the constraint it was entered by (e, whose rate
+   gives the orientation d) and the check that no other of its constraints vanishes there.
+   res: alpha*, its uncertainty; ires: j, node, indicator, old, new, e, d (tied: ires + 16).
+   Returns 0 (an ordinary transition), 1 (no root before bound: the path's end), 2 (anything
+   else: a tie, a facet the perturbation must decide, no facet, a singular branch, a constraint
+   entered without rate, another one vanishing at the point -- the caller's general form
+   decides), 3 (a NaN root). */
+int cfc_ordinary_step(int64_t m, int64_t kc, const double *c, const double *dc, const double *tolv,
+                      const double *tols, const int64_t *cidx, const int64_t *cnode, const double *g, int64_t gs,
+                      const double *dg, int64_t dgs, const double *indtv, const double *indts, const int8_t *codes,
+                      double aref, int64_t s, double alpha0, double bound, double ulps, const int64_t *kinds,
+                      const int8_t *pivot, const uint8_t *no_t, const double *w1, const double *w2, const double *dw,
+                      const double *S, const double *St, int64_t lds, const double *F, double rho, double *work,
+                      int64_t *iwork, const double *sq, double unit, const double *cons, double rtol, double ef,
+                      int8_t *codes_new, uint8_t *imposed, double *W, double *lu, int32_t *piv, int64_t *ints,
+                      double *out, double *res, int64_t *ires)
+{
+    const int64_t n2 = 2 * m;
+    int64_t *tied = ires + 16;
+    const int64_t n = cfc_exit(kc, c, dc, tolv, tols, s, alpha0, aref, bound, ulps, tied, res);
+    if (n < 0)
+        return 3;
+    if (n == 0)
+        return 1;
+    if (n > 1)
+        return 2;
+    const int64_t j = tied[0];
+    const double a = res[0];
+    const int64_t node = cnode[j], q = cidx[j] / m, old = codes[node], kind = kinds[node];
+    if (old < 0 || old > 3 || kind < 0 || kind > 2)
+        return 2;
+    int64_t nw = pivot[(old * 3 + kind) * 3 + q];
+    if (nw == -2)
+        return 2;
+    if (nw == -1) {
+        const int64_t r = m + node;
+        const double b = g[r * gs] + (a - aref) * dg[r * dgs];
+        const double bt = indtv[r] + fabs(a - aref) * indts[r];
+        if (!(fabs(b) > bt))
+            return 2;
+        nw = b > 0 ? 2 : 3;
+    }
+    for (int64_t i = 0; i < m; i++)
+        codes_new[i] = codes[i];
+    codes_new[node] = (int8_t)nw;
+    for (int64_t i = 0; i < m; i++) {
+        imposed[i] = codes_new[i] != 0;
+        imposed[m + i] = codes_new[i] == 1 && !(no_t && no_t[i]);
+    }
+    for (int64_t i = 0; i < n2; i++) {
+        W[2 * i] = w1[i] * (1.0 - a) + a * w2[i];
+        W[2 * i + 1] = dw[i];
+    }
+    double x = fabs(a);
+    x = x > 1.0 ? x : 1.0;
+    const double around = ulps * (nextafter(x, INFINITY) - x);
+    const int64_t n_out = 16 * m + (m > 1 ? m : 1);
+    int64_t *nk = ints + n2 + m, *liout = ints + n2 + m + 2;
+    if (cfc_branch_line(m, S, St, lds, imposed, codes_new, F, W, rho, 1, nk, lu, piv, ints, ints + n2,
+                        out + 16 * m, out, out + 4 * m, out + 10 * m, work, iwork, sq, unit, kinds, cons, rtol, ef,
+                        around, out + n_out, liout))
+        return 2;
+    /* the new branch's constraints (cfc_line_constraints' layout after the scales) */
+    const int64_t k2 = liout[4 * m], m3 = 3 * m;
+    const double *base = out + n_out + 12 * m + 2 * m3;
+    const double *c2 = base + n2, *dc2 = base + 2 * n2, *tolv2 = base + 3 * n2, *tols2 = base + 4 * n2;
+    const int64_t *cidx2 = liout, want = q * m + node;
+    int64_t e = -1;
+    for (int64_t i = 0; i < k2; i++)
+        if (cidx2[i] == want) {
+            e = i;
+            break;
+        }
+    if (e < 0 || !(fabs(dc2[e]) > tols2[e]))
+        return 2;
+    for (int64_t i = 0; i < k2; i++)
+        if (i != e && fabs(c2[i]) <= tolv2[i])
+            return 2;
+    ires[0] = j;
+    ires[1] = node;
+    ires[2] = q;
+    ires[3] = old;
+    ires[4] = nw;
+    ires[5] = e;
+    ires[6] = dc2[e] > 0 ? 1 : -1;
+    return 0;
+}
 /* The point tableau of the exact method's lexicographic walk (condensed.PointTableau): A is
    4k x nc, column-major (lda), nc = p + 2k: rows 2j, 2j + 1 = node j's X rows (normal,
    tangential), rows 2k + 2j, 2k + 2j + 1 = the same of S X.  cfc_tableau_change: node j from
@@ -948,6 +1047,11 @@ def _load():
     lib.cfc_branch_line.argtypes = lib.cfc_branch_small.argtypes + [ptr, ctypes.c_double, ptr, ptr, ctypes.c_double,
                                                                      ctypes.c_double, ctypes.c_double, ptr, ptr]
     lib.cfc_branch_line.restype = ctypes.c_int
+    d = ctypes.c_double
+    lib.cfc_ordinary_step.argtypes = [i64, i64, ptr, ptr, ptr, ptr, ptr, ptr, ptr, i64, ptr, i64, ptr, ptr, ptr, d,
+                                      i64, d, d, d, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, i64, ptr, d, ptr, ptr,
+                                      ptr, d, ptr, d, d, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+    lib.cfc_ordinary_step.restype = ctypes.c_int
     lib.cfc_line_constraints.argtypes = [i64, ptr, ptr, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double,
                                          ctypes.c_double, ptr, ptr]
     lib.cfc_line_constraints.restype = i64
@@ -1246,6 +1350,90 @@ class BranchKernel:
                     out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
                     out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[-1]))
         return entry, L2[:n2], L2[n2:5 * m], L2[5 * m:], cons
+
+
+class OrdinaryStep:
+    """One ordinary transition of the exact method in one compiled call (``cfc_ordinary_step``):
+    the first root of a branch, the facet of its single vanishing constraint, the next branch
+    there (as :meth:`BranchKernel.line` forms it) and the checks that make the transition an
+    ordinary one.  Built once per path from the branch ``kernel``, the constraints' ``request``,
+    the pivot table (4 x 3 x 3 int8), the path's data w1, w2 (2m each; dw = w2 - w1) and the
+    nodes without tangential unknown (bool m, or None)."""
+
+    def __init__(self, kernel: "BranchKernel", request: "LineRequest", pivot: np.ndarray, w1: np.ndarray,
+                 w2: np.ndarray, dw: np.ndarray, no_tangent: Optional[np.ndarray]):
+        self.kernel, self.request = kernel, request
+        m = self.m = kernel.m
+        self.pivot = np.ascontiguousarray(pivot, dtype=np.int8)
+        self.w1, self.w2, self.dw = (np.ascontiguousarray(a, dtype=np.float64) for a in (w1, w2, dw))
+        if self.pivot.shape != (4, 3, 3) or not (self.w1.shape == self.w2.shape == self.dw.shape == (2 * m,)):
+            raise ValueError(f"OrdinaryStep takes a (4, 3, 3) pivot table and data of {2 * m} rows")
+        self.no_tangent = (None if no_tangent is None or not np.any(no_tangent) else
+                           np.ascontiguousarray(no_tangent, dtype=np.uint8))
+        n2 = 2 * m
+        self._lu = np.empty(max(n2 * n2, 1))
+        self._piv = np.empty(max(n2, 1), dtype=np.int32)
+        self._res = np.empty(2)
+        self._ires = np.empty(16 + max(4 * m, 1), dtype=np.int64)
+        S_addr, St_addr, F_addr, work, iwork = kernel._addr
+        sq, kinds, cons = request.addresses
+        nt = 0 if self.no_tangent is None else address(self.no_tangent)
+        self._fixed = (kinds, address(self.pivot), nt or None, address(self.w1), address(self.w2), address(self.dw),
+                       S_addr, St_addr, max(n2, 1), F_addr)
+        self._fixed2 = (work, iwork, sq, request.unit, cons, request.rtol, request.ef)
+        self._tail = (address(self._lu), address(self._piv))
+        self._res_addr = (address(self._res), address(self._ires))
+
+    def __call__(self, c, dc, tol_v, tol_s, cidx, cnode, g, dg, ind_tv, ind_ts, codes, aref: float, s: int,
+                 alpha0: float, bound: float, ulps: float, rho: float):
+        """(status, result) for the branch given by its arrays (see ``cfc_ordinary_step``): status 1
+        (the path ends before ``bound``: result None), 2 (not an ordinary transition, or a NaN
+        root: None -- the general form decides) or 0 with result = (alpha*, its uncertainty, the
+        position j of the vanishing constraint, node, indicator, old and new state, the position
+        e of the constraint the new branch is entered by, orientation d, the new codes, their
+        imposed rows, the data W, the factorization entry (lu, piv, rows, slip, coef, support),
+        L, G, E and the constraints tuple of :meth:`BranchKernel.line`)."""
+        m, n2 = self.m, 2 * self.m
+        kc = c.size
+        if not (dc.size == tol_v.size == tol_s.size == cidx.size == cnode.size == kc and g.size == dg.size == 3 * m
+                and ind_tv.shape == ind_ts.shape == (3 * m,) and codes.shape == (m,) and codes.dtype == np.int8
+                and cidx.dtype == cnode.dtype == np.int64 and c.dtype == dc.dtype == tol_v.dtype == tol_s.dtype
+                == g.dtype == dg.dtype == ind_tv.dtype == ind_ts.dtype == np.float64 and c.flags.c_contiguous
+                and dc.flags.c_contiguous and tol_v.flags.c_contiguous and tol_s.flags.c_contiguous
+                and cidx.flags.c_contiguous and cnode.flags.c_contiguous and ind_tv.flags.c_contiguous
+                and ind_ts.flags.c_contiguous and codes.flags.c_contiguous
+                and g.strides[0] % 8 == 0 and dg.strides[0] % 8 == 0 and g.strides[0] > 0 and dg.strides[0] > 0):
+            return 2, None
+        n_out = 16 * m + max(m, 1)
+        out = np.empty(n_out + 28 * m + 1)
+        ints = np.empty(n2 + m + 2 + 4 * m + 1, dtype=np.int64)
+        codes_new = np.empty(m, dtype=np.int8)
+        imposed = np.empty(n2, dtype=bool)
+        W = np.empty((n2, 2))
+        status = self.kernel._lib.cfc_ordinary_step(
+            m, kc, address(c), address(dc), address(tol_v), address(tol_s), address(cidx), address(cnode),
+            address(g), g.strides[0] // 8, address(dg), dg.strides[0] // 8, address(ind_tv), address(ind_ts),
+            address(codes), aref, s, alpha0, bound, ulps, *self._fixed, rho, *self._fixed2, address(codes_new),
+            address(imposed), address(W), *self._tail, address(ints), address(out), *self._res_addr)
+        if status:
+            return (status if status == 1 else 2), None
+        ires, res = self._ires, self._res
+        j, node, ind, old, new, e, d = (int(x) for x in ires[:7])
+        k, ns = int(ints[n2 + m]), int(ints[n2 + m + 1])
+        lu = self._lu[:k * k].reshape((k, k), order="F").copy(order="F")
+        piv = self._piv[:k].copy()
+        rows, slip = ints[:k], ints[n2:n2 + ns]
+        coef = out[16 * m:16 * m + ns]
+        entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
+        L2 = out[:16 * m].reshape(8 * m, 2)
+        b, ic = n_out + 12 * m, n2 + m + 2
+        nc = int(ints[ic + 4 * m])
+        m3, b2 = 3 * m, n_out + 18 * m
+        cons = (out[b:b + m3], out[b + m3:b2], ints[ic:ic + nc], out[b2:b2 + nc], ints[ic + n2:ic + n2 + nc],
+                out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
+                out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[-1]))
+        return 0, (float(res[0]), float(res[1]), j, node, ind, old, new, e, d, codes_new, imposed, W, entry,
+                   L2[:n2], L2[n2:5 * m], L2[5 * m:], cons)
 
 
 class LineRequest:

@@ -383,6 +383,7 @@ def test_dead_end_is_reported_not_raised(monkeypatch):
         raise ex._Unresolved("singular", "no branch continues here (test)")
 
     monkeypatch.setattr(ex, "_resolve", no_crossing)
+    monkeypatch.setattr(ex, "ORDINARY_COMPILED", False)  # (every transition through _resolve)
     monkeypatch.setattr(ex, "_enumerated_continuations", lambda *a, **k: [])
     path = cfcontact.trace_path(one_node(2.5, K1), 0.0, 1.0, method="exact")
     assert path.status == "stuck" and path.events[-1].kind == "dead_end"

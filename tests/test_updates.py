@@ -438,6 +438,67 @@ def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch, updates):
     assert paths[True].status == "completed" and paths[True].folds and len(paths[True].transitions) > 50
 
 
+def _bitwise_same_paths(a, b, sa, sb):
+    """The same path to the last bit: transitions, stored points, branches' multipliers and
+    indicators, the path's statistics and the solver's counters."""
+    assert a.status == b.status and len(a.transitions) == len(b.transitions)
+    assert [t.to_dict() for t in a.transitions] == [t.to_dict() for t in b.transitions]
+    assert a._alphas == b._alphas and a._point_branch == b._point_branch
+    for store in ("_lam", "_ind"):
+        x, y = getattr(a, store), getattr(b, store)
+        assert x.keys() == y.keys()
+        for key in x:
+            assert x[key][0] == y[key][0]
+            for u, v in zip(x[key][1:], y[key][1:]):
+                np.testing.assert_array_equal(u, v)
+    timeless = lambda d: {k: v for k, v in d.items() if "time" not in k}  # noqa: E731
+    assert timeless(dict(a.stats)) == timeless(dict(b.stats))
+    assert timeless(sa.stats.as_dict()) == timeless(sb.stats.as_dict())
+
+
+@pytest.mark.parametrize("case", ["chain folds", "copies: degenerate points", "random gaps", "no tangent"])
+def test_compiled_ordinary_transitions_give_the_same_path(monkeypatch, case):
+    """Ordinary transitions through one compiled call (exact._ordinary_transition,
+    native.OrdinaryStep: the first root, the facet, the next branch and the checks) against the
+    general form (exact.ORDINARY_COMPILED = False): the same path to the last bit, on long paths
+    with folds, with exact ties (degenerate points: the compiled step hands those to the general
+    form), with initial gaps, and with nodes without tangential unknown and frictionless ones."""
+    from cfcontact import exact
+
+    if case == "chain folds":
+        system = _chain(12, 2.7, 3)
+    elif case == "copies: degenerate points":
+        system = _chain(6, 2.7, 4, copies=3)
+    elif case == "random gaps":
+        system = random_system(9, 21, friction=0.8, gap=np.linspace(-0.05, 0.1, 9))
+    else:
+        m, n = 10, 26
+        rng = np.random.default_rng(5)
+        A = rng.standard_normal((n, n))
+        N, T = np.zeros((m, n)), np.zeros((m, n))
+        for i in range(m):
+            T[i, 2 * i], N[i, 2 * i + 1] = (0.0 if i in (2, 7) else 1.0), 1.0
+        system = ContactSystem.from_arrays(A @ A.T / n + np.eye(n), N, T, rng.standard_normal(n),
+                                           rng.standard_normal(n) + np.tile([0.0, 1.0], n // 2),
+                                           np.where(np.arange(m) % 4 == 1, 0.0, 1.5))
+    taken = []
+    step = exact._ordinary_transition
+    monkeypatch.setattr(exact, "_ordinary_transition", lambda *a: taken.append(step(*a)) or taken[-1])
+    runs = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(exact, "ORDINARY_COMPILED", compiled)
+        solver = CondensedSolver(system)
+        runs[compiled] = (cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver), solver)
+    (a, sa), (b, sb) = runs[True], runs[False]
+    _bitwise_same_paths(a, b, sa, sb)
+    n_fast = sum(r is not None and r[0] is not None for r in taken)
+    assert len(a.transitions) > 5 and n_fast >= 0.5 * len(a.transitions)
+    if case.startswith("copies"):
+        assert a.stats["degenerate_points"] > 0 and n_fast < len(a.transitions)
+    if case == "no tangent":
+        assert system.no_tangent.any()
+
+
 @pytest.mark.parametrize("friction", ["0.3", "30", "mixed"])
 def test_ssnm_iterates_by_updates_equal_fresh_factorizations(monkeypatch, friction):
     """SSNM in the multipliers solves its iterates by updates of one kept factorization on large
