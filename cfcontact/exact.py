@@ -246,7 +246,8 @@ class _Line:
     ``tol_v`` and ``tol_s``: what counts as zero for a value at alpha_ref and for a rate."""
 
     __slots__ = ("codes", "key", "alpha", "lam", "dlam", "g", "dg", "cidx", "csgn", "cnode", "c", "dc",
-                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex")
+                 "tol_v", "tol_s", "scale", "ind_tv", "ind_ts", "P", "_sets", "_Y", "_full", "source", "vertex",
+                 "inputs")
 
     def __init__(self, codes, key, alpha, lam, dlam, g, dg, scale_v, scale_s, rtol, F0_index, full=None,
                  source=None, eg=None, tol=None, floor=None):
@@ -281,16 +282,21 @@ class _Line:
         self._Y = None  # (Y_ref, dY) with u, when formed
         self._full = full
         self.source = source  # backend forming u on demand (lazy branches of the path), or None
+        # the addresses of its arrays for the compiled ordinary step (native.OrdinaryStep.inputs),
+        # None until asked for (and again once its values move: _shift)
+        self.inputs = None
 
     @classmethod
-    def compiled(cls, codes, key, alpha, lam, dlam, g, dg, cons, full, source) -> "_Line":
+    def compiled(cls, codes, key, alpha, lam, dlam, g, dg, cons, full, source, inputs=None) -> "_Line":
         """The branch from its tolerances and constraints formed by the compiled kernel
-        (:func:`cfcontact.native.line_constraints`: the same arithmetic as :meth:`__init__`'s)."""
+        (:func:`cfcontact.native.line_constraints`: the same arithmetic as :meth:`__init__`'s);
+        ``inputs``: the addresses of its arrays where the kernel formed them in its own buffers."""
         ln = cls.__new__(cls)
         ln.codes, ln.key, ln.alpha = codes, key, float(alpha)
         ln.lam, ln.dlam, ln.g, ln.dg = lam, dlam, g, dg
         (ln.ind_tv, ln.ind_ts, ln.cidx, ln.csgn, ln.cnode, ln.c, ln.dc, ln.tol_v, ln.tol_s, ln.scale) = cons
         ln.P, ln.vertex, ln._sets, ln._Y, ln._full, ln.source = None, False, None, None, full, source
+        ln.inputs = inputs
         return ln
 
     @property
@@ -403,7 +409,7 @@ class _CondensedData:
         solver = self.solver
         full = self._full(lam, dlam, alpha, imposed)
         if cons is not None:  # (formed by the compiled kernel with the branch)
-            return _Line.compiled(codes, key, alpha, lam, dlam, g, dg, cons, full, solver)
+            return _Line.compiled(codes, key, alpha, lam, dlam, g, dg, cons[0], full, solver, cons[1])
         if Eg is None:
             rtol = FULL_BACKEND_RTOL_FACTOR * rtol
         rho = self.rho
@@ -461,11 +467,16 @@ class _CondensedData:
         if stepper is None or stepper.kernel is not kernel or stepper.request is not request:
             stepper = self._stepper = native.OrdinaryStep(kernel, request, _PIVOT, self.w1, self.w2, self.dw,
                                                           solver.no_tangent)
-        status, r = stepper(ln.c, ln.dc, ln.tol_v, ln.tol_s, ln.cidx, ln.cnode, ln.g, ln.dg, ln.ind_tv, ln.ind_ts,
-                            ln.codes, ln.alpha, s, alpha0, bound, ALPHA_ULPS, self.rho)
+        inputs = ln.inputs
+        if inputs is None:
+            inputs = ln.inputs = native.OrdinaryStep.inputs(ln.c, ln.dc, ln.tol_v, ln.tol_s, ln.cidx, ln.cnode, ln.g,
+                                                            ln.dg, ln.ind_tv, ln.ind_ts, ln.codes)
+            if inputs is None:
+                return 2, None
+        status, r = stepper(inputs, ln.alpha, s, alpha0, bound, ALPHA_ULPS, self.rho)
         if status:
             return status, None
-        a_star, a_err, j, node, ind, old, new, e, d, codes, imposed, W, entry, L, G, E, cons = r
+        a_star, a_err, j, node, ind, old, new, e, d, codes, imposed, W, entry, L, G, E, cons, new_inputs = r
         raw = codes.tobytes()
         key = b"exact:" + raw
         if (solver.has_factorization(key) or (raw, a_star) in lines
@@ -474,7 +485,7 @@ class _CondensedData:
         solver.adopt_factorization(key, entry)
         lam, dlam = L[:, 0], L[:, 1]
         nxt = _Line.compiled(codes, key, a_star, lam, dlam, G[:, 0], G[:, 1], cons,
-                             self._full(lam, dlam, a_star, imposed), solver)
+                             self._full(lam, dlam, a_star, imposed), solver, new_inputs)
         return 0, (a_star, a_err, j, node, ind, e, d, nxt)
 
     def _rate_columns(self, J):
@@ -1140,6 +1151,13 @@ def _add_branch(path, ln: _Line, s: int, **kw):
     return path.add_branch(ln.sets, s, Yr, dY, reference=ln.alpha, **kw)
 
 
+def _imposed_count(code: int, kind: int) -> int:
+    """How many of a node's two rows of B u its state imposes as equations (the condensed
+    backend's imposed_rows): N u = g when closed, T u = 0 when sticking with a tangential
+    unknown (kind 2 has none)."""
+    return (code != OPEN) + (code == STICK and kind != 2)
+
+
 def _precise_side(ctx, old: _Line, new: _Line) -> Optional[str]:
     """Which of two branches meeting at a transition point locates the point's displacements to
     the multipliers' precision ("old", "new"; None: neither, or the nodes disagree).  A node's
@@ -1150,15 +1168,16 @@ def _precise_side(ctx, old: _Line, new: _Line) -> Optional[str]:
     old one, whose vanishing indicator was a multiplier (lam_n, or lam_t -+ F lam_n)."""
     if not ctx.condensed:
         return None
-    imposed = ctx.data.solver.imposed_rows  # (cached per state: both branches' were just asked for)
-    before, after = imposed(old.codes), imposed(new.codes)
     changed = (old.codes != new.codes).nonzero()[0]  # (usually one node)
-    m = old.codes.size
-    if changed.size == 1:  # (the same count for one node, without arrays)
+    if changed.size == 1:  # (the same count for one node, from its states and kind)
         i = int(changed[0])
-        gain = (int(after[i]) + int(after[m + i])) - (int(before[i]) + int(before[m + i]))
+        kind = int(ctx.F0_index[i])
+        gain = _imposed_count(int(new.codes[i]), kind) - _imposed_count(int(old.codes[i]), kind)
         more, less = gain > 0, gain < 0
     else:
+        imposed = ctx.data.solver.imposed_rows  # (cached per state: both branches' were just asked for)
+        before, after = imposed(old.codes), imposed(new.codes)
+        m = old.codes.size
         gain = (after[changed].astype(int) + after[m + changed]) - (before[changed].astype(int) + before[m + changed])
         more, less = bool((gain > 0).any()), bool((gain < 0).any())
     if more == less:
@@ -1224,6 +1243,8 @@ def _shift(ln: _Line, delta: float):
     ln.lam = ln.lam + delta * ln.dlam
     ln.g = ln.g + delta * ln.dg
     ln.c = ln.c + delta * ln.dc
+    if ln.inputs is not None:  # (its values are new arrays)
+        ln.inputs = native.OrdinaryStep.moved(ln.inputs, ln.c, ln.g)
     if ln._Y is not None:
         ln._Y = (ln._Y[0] + delta * ln._Y[1], ln._Y[1])
 
@@ -1254,7 +1275,8 @@ def _ordinary_transition(ctx: _Context, path, branch, ln: _Line, s: int, alpha_f
         ctx._lines.pop((nxt.codes.tobytes(), a_star), None)
         _shift(nxt, delta)
         a_star = nxt.alpha
-    changes = _changes(ln, nxt, [{"node": node, "set": SET_NAMES[ind]}])
+    old, new = int(ln.codes[node]), int(nxt.codes[node])  # (the one node that changes: _changes' record)
+    changes = [{"node": node, "set": _set_name(old, new), "from": STATE_NAMES[old], "to": STATE_NAMES[new]}]
     tr = Transition(len(path.transitions), a_star, "transversal" if d == s else "fold", changes[0]["node"],
                     changes[0]["set"], branch.index, len(path.branches), bracket=(a_star, a_star), changes=changes,
                     pivots=[])
@@ -1931,6 +1953,7 @@ def _apex_start(ctx: _Context, path, alpha, s, monitor=None, event=True) -> Opti
     # alpha that is itself rounded, of the size of the rates times an ulp); the branch is the ray
     ctx._lines.pop((ln.codes.tobytes(), float(alpha)), None)  # (Context.line's key)
     ln.lam, ln.g, ln.c = np.zeros_like(ln.lam), np.zeros_like(ln.g), np.zeros_like(ln.c)
+    ln.inputs = None
     if not event:
         return ln
     path.events.append(PathEvent(

@@ -1246,6 +1246,26 @@ def first_root(c: np.ndarray, dc: np.ndarray, tol_v: np.ndarray, tol_s: np.ndarr
     return float(res[0]), tied[:n], float(res[1])
 
 
+def _line_outputs(m: int, out: np.ndarray, ints: np.ndarray, base: int, ib: int, codes_addr: int) -> tuple:
+    """The views of a branch formed by cfc_branch_line in ``out`` / ``ints`` (addresses base, ib):
+    (L, G, E, constraints, inputs) -- constraints as :func:`line_constraints` gives them, inputs
+    the addresses of the branch's arrays as :class:`OrdinaryStep` reads them (its constraints'
+    count, c, dc, tol_v, tol_s, cidx, cnode, g and its stride, dg and its stride, the indicators'
+    tolerances, codes), so that a step from this branch needs no address lookups."""
+    n2, m3 = 2 * m, 3 * m
+    n_out = 16 * m + max(m, 1)
+    b, ic, b2 = n_out + 12 * m, n2 + m + 2, n_out + 18 * m
+    nc = int(ints[ic + 4 * m])
+    L2 = out[:16 * m].reshape(8 * m, 2)
+    cons = (out[b:b + m3], out[b + m3:b2], ints[ic:ic + nc], out[b2:b2 + nc], ints[ic + n2:ic + n2 + nc],
+            out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
+            out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[b2 + 5 * n2]))
+    inputs = (nc, base + 8 * (b2 + n2), base + 8 * (b2 + 2 * n2), base + 8 * (b2 + 3 * n2), base + 8 * (b2 + 4 * n2),
+              ib + 8 * ic, ib + 8 * (ic + n2), base + 8 * 2 * n2, 2, base + 8 * (2 * n2 + 1), 2, base + 8 * b,
+              base + 8 * (b + m3), codes_addr)
+    return L2[:n2], L2[n2:5 * m], L2[5 * m:], cons, inputs
+
+
 class BranchKernel:
     """The exact method's branch data for small reduced systems in one compiled call
     (``cfc_branch_small``): the reduced matrix of a state, its LU, the solve for the values' and
@@ -1288,9 +1308,11 @@ class BranchKernel:
 
     def line(self, imposed: np.ndarray, codes: np.ndarray, W: np.ndarray, rho: float, entry, request: "LineRequest",
              around: float):
-        """(entry, L, G, E, constraints): :meth:`__call__`'s, and in the same call the branch's
-        tolerances and constraints as :func:`line_constraints` gives them (from :func:`line_scales`'
-        scales) for ``request``'s data and ``around``; None when the reduced matrix is singular."""
+        """(entry, L, G, E, (constraints, inputs)): :meth:`__call__`'s, and in the same call the
+        branch's tolerances and constraints as :func:`line_constraints` gives them (from
+        :func:`line_scales`' scales) for ``request``'s data and ``around``, with the addresses of
+        its arrays for :class:`OrdinaryStep` (see ``_line_outputs``); None when the reduced
+        matrix is singular."""
         return self._run(imposed, codes, W, rho, entry, request, around)
 
     def _run(self, imposed, codes, W, rho, entry, request, around):
@@ -1340,16 +1362,11 @@ class BranchKernel:
             rows, slip = ints[:k], ints[n2:n2 + ns]
             coef = out[16 * m:16 * m + ns]
             entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
-        L2 = out[:16 * m].reshape(8 * m, 2)
-        cons = None
         if request is not None:
-            b, ic = n_out + 12 * m, n2 + m + 2
-            nc = int(ints[ic + 4 * m])
-            m3, b2 = 3 * m, n_out + 18 * m
-            cons = (out[b:b + m3], out[b + m3:b2], ints[ic:ic + nc], out[b2:b2 + nc], ints[ic + n2:ic + n2 + nc],
-                    out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
-                    out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[-1]))
-        return entry, L2[:n2], L2[n2:5 * m], L2[5 * m:], cons
+            L, G, E, cons, inputs = _line_outputs(m, out, ints, base, ib, address(codes))
+            return entry, L, G, E, (cons, inputs)
+        L2 = out[:16 * m].reshape(8 * m, 2)
+        return entry, L2[:n2], L2[n2:5 * m], L2[5 * m:], None
 
 
 class OrdinaryStep:
@@ -1384,56 +1401,68 @@ class OrdinaryStep:
         self._tail = (address(self._lu), address(self._piv))
         self._res_addr = (address(self._res), address(self._ires))
 
-    def __call__(self, c, dc, tol_v, tol_s, cidx, cnode, g, dg, ind_tv, ind_ts, codes, aref: float, s: int,
-                 alpha0: float, bound: float, ulps: float, rho: float):
-        """(status, result) for the branch given by its arrays (see ``cfc_ordinary_step``): status 1
-        (the path ends before ``bound``: result None), 2 (not an ordinary transition, or a NaN
-        root: None -- the general form decides) or 0 with result = (alpha*, its uncertainty, the
-        position j of the vanishing constraint, node, indicator, old and new state, the position
-        e of the constraint the new branch is entered by, orientation d, the new codes, their
-        imposed rows, the data W, the factorization entry (lu, piv, rows, slip, coef, support),
-        L, G, E and the constraints tuple of :meth:`BranchKernel.line`)."""
-        m, n2 = self.m, 2 * self.m
+    @staticmethod
+    def inputs(c, dc, tol_v, tol_s, cidx, cnode, g, dg, ind_tv, ind_ts, codes) -> Optional[tuple]:
+        """The addresses of a branch's arrays as :meth:`__call__` takes them (see
+        ``_line_outputs``), or None when they do not have the layout it reads (then the caller's
+        general form decides)."""
+        m = codes.size
         kc = c.size
         if not (dc.size == tol_v.size == tol_s.size == cidx.size == cnode.size == kc and g.size == dg.size == 3 * m
-                and ind_tv.shape == ind_ts.shape == (3 * m,) and codes.shape == (m,) and codes.dtype == np.int8
+                and ind_tv.shape == ind_ts.shape == (3 * m,) and codes.dtype == np.int8 and codes.ndim == 1
                 and cidx.dtype == cnode.dtype == np.int64 and c.dtype == dc.dtype == tol_v.dtype == tol_s.dtype
                 == g.dtype == dg.dtype == ind_tv.dtype == ind_ts.dtype == np.float64 and c.flags.c_contiguous
                 and dc.flags.c_contiguous and tol_v.flags.c_contiguous and tol_s.flags.c_contiguous
                 and cidx.flags.c_contiguous and cnode.flags.c_contiguous and ind_tv.flags.c_contiguous
                 and ind_ts.flags.c_contiguous and codes.flags.c_contiguous
                 and g.strides[0] % 8 == 0 and dg.strides[0] % 8 == 0 and g.strides[0] > 0 and dg.strides[0] > 0):
-            return 2, None
+            return None
+        return (kc, address(c), address(dc), address(tol_v), address(tol_s), address(cidx), address(cnode),
+                address(g), g.strides[0] // 8, address(dg), dg.strides[0] // 8, address(ind_tv), address(ind_ts),
+                address(codes))
+
+    @staticmethod
+    def moved(inputs: tuple, c: np.ndarray, g: np.ndarray) -> tuple:
+        """:meth:`inputs` of a branch whose values c and indicators g were replaced (contiguous
+        float64 arrays of the same sizes: its reference point moved)."""
+        if not (c.size == inputs[0] and c.dtype == g.dtype == np.float64 and c.flags.c_contiguous
+                and g.flags.c_contiguous):
+            raise ValueError("OrdinaryStep.moved takes contiguous float64 values of the branch's sizes")
+        return (inputs[0], address(c), *inputs[2:7], address(g), 1, *inputs[9:])
+
+    def __call__(self, inputs: tuple, aref: float, s: int, alpha0: float, bound: float, ulps: float, rho: float):
+        """(status, result) for the branch whose arrays are at ``inputs`` (:meth:`inputs`; their
+        owner keeps them alive) referenced at aref (see ``cfc_ordinary_step``): status 1 (the
+        path ends before ``bound``: result None), 2 (not an ordinary transition, or a NaN root:
+        None -- the general form decides) or 0 with result = (alpha*, its uncertainty, the
+        position j of the vanishing constraint, node, indicator, old and new state, the position
+        e of the constraint the new branch is entered by, orientation d, the new codes, their
+        imposed rows, the data W, the factorization entry (lu, piv, rows, slip, coef, support),
+        L, G, E, the constraints tuple of :meth:`BranchKernel.line` and the new branch's inputs)."""
+        m, n2 = self.m, 2 * self.m
         n_out = 16 * m + max(m, 1)
-        out = np.empty(n_out + 28 * m + 1)
+        out = np.empty(n_out + 28 * m + 1 + 2 * n2)  # (then W: 2m x 2)
         ints = np.empty(n2 + m + 2 + 4 * m + 1, dtype=np.int64)
-        codes_new = np.empty(m, dtype=np.int8)
-        imposed = np.empty(n2, dtype=bool)
-        W = np.empty((n2, 2))
+        small = np.empty(m + n2, dtype=np.uint8)  # codes (int8, m), imposed (bool, 2m)
+        base, ib, sb = address(out), address(ints), address(small)
+        nw = n_out + 28 * m + 1
         status = self.kernel._lib.cfc_ordinary_step(
-            m, kc, address(c), address(dc), address(tol_v), address(tol_s), address(cidx), address(cnode),
-            address(g), g.strides[0] // 8, address(dg), dg.strides[0] // 8, address(ind_tv), address(ind_ts),
-            address(codes), aref, s, alpha0, bound, ulps, *self._fixed, rho, *self._fixed2, address(codes_new),
-            address(imposed), address(W), *self._tail, address(ints), address(out), *self._res_addr)
+            m, *inputs, aref, s, alpha0, bound, ulps, *self._fixed, rho, *self._fixed2, sb, sb + m, base + 8 * nw,
+            *self._tail, ib, base, *self._res_addr)
         if status:
             return (status if status == 1 else 2), None
-        ires, res = self._ires, self._res
-        j, node, ind, old, new, e, d = (int(x) for x in ires[:7])
-        k, ns = int(ints[n2 + m]), int(ints[n2 + m + 1])
+        j, node, ind, old, new, e, d = self._ires[:7].tolist()
+        k, ns = ints[n2 + m:n2 + m + 2].tolist()
         lu = self._lu[:k * k].reshape((k, k), order="F").copy(order="F")
         piv = self._piv[:k].copy()
         rows, slip = ints[:k], ints[n2:n2 + ns]
         coef = out[16 * m:16 * m + ns]
         entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
-        L2 = out[:16 * m].reshape(8 * m, 2)
-        b, ic = n_out + 12 * m, n2 + m + 2
-        nc = int(ints[ic + 4 * m])
-        m3, b2 = 3 * m, n_out + 18 * m
-        cons = (out[b:b + m3], out[b + m3:b2], ints[ic:ic + nc], out[b2:b2 + nc], ints[ic + n2:ic + n2 + nc],
-                out[b2 + n2:b2 + n2 + nc], out[b2 + 2 * n2:b2 + 2 * n2 + nc], out[b2 + 3 * n2:b2 + 3 * n2 + nc],
-                out[b2 + 4 * n2:b2 + 4 * n2 + nc], float(out[-1]))
-        return 0, (float(res[0]), float(res[1]), j, node, ind, old, new, e, d, codes_new, imposed, W, entry,
-                   L2[:n2], L2[n2:5 * m], L2[5 * m:], cons)
+        codes = small[:m].view(np.int8)
+        L, G, E, cons, new_inputs = _line_outputs(m, out, ints, base, ib, sb)
+        res = self._res
+        return 0, (float(res[0]), float(res[1]), j, node, ind, old, new, e, d, codes, small[m:].view(bool),
+                   out[nw:].reshape(n2, 2), entry, L, G, E, cons, new_inputs)
 
 
 class LineRequest:

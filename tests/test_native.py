@@ -379,7 +379,10 @@ def test_compiled_constraints_give_the_numpy_bits():
         res = kernel.line(imposed, codes, W, system.rho, None, request, around)
         if res is None:
             continue
-        _, L, G, E, fused = res
+        _, L, G, E, (fused, inputs) = res
+        # the addresses the ordinary step reads are those of the returned arrays
+        assert inputs == native.OrdinaryStep.inputs(fused[5], fused[6], fused[7], fused[8], fused[2], fused[4],
+                                                    G[:, 0], G[:, 1], fused[0], fused[1], codes)
         scales = native.line_scales(W, L, data.sqrt_diag, imposed, system.rho, request.unit)
         alone = native.line_constraints(scales, codes, kinds, exact._CONS_SIGN, G, E, 3e-10, exact.ERROR_FACTOR, around)
         ref = exact._Line(codes, b"", alpha, L[:, 0], L[:, 1], G[:, 0], G[:, 1], scales[0], scales[1], 3e-10, kinds,
