@@ -1488,6 +1488,7 @@ class _Walk:
                  n_trans0: int, start_key):
         self.ctx, self.path, self.ln, self.s, self.alpha, self.branch = ctx, path, ln, s, alpha, branch
         self.n_trans0, self.start_key = n_trans0, start_key
+        self._digested = (None, None)
 
     @classmethod
     def begin(cls, ctx, path, ln, s, alpha, parent=None, origin=None):
@@ -1509,7 +1510,8 @@ class _Walk:
         """("point", index) of the next branch's entry point, ("end", index) of the point where the
         path leaves the alpha range, or ("status", status) when the walk cannot go on."""
         ctx, path, ln, s, branch = self.ctx, self.path, self.ln, self.s, self.branch
-        ctx.visited.setdefault(_digest(ln.codes.tobytes()), (s, self.alpha))
+        known = self._digested  # (the digest of the branch entered last, when it is ln)
+        ctx.visited.setdefault(known[1] if known[0] is ln else _digest(ln.codes.tobytes()), (s, self.alpha))
         fast = (_ordinary_transition(ctx, path, branch, ln, s, self.alpha)
                 if ctx.fast and len(path.transitions) - self.n_trans0 < ctx.opts.max_transitions else None)
         if fast is None:
@@ -1576,6 +1578,7 @@ class _Walk:
         if entry is not None:
             path.start_branch_at(self.branch, a_star, *entry)
         self.ln, self.s, self.alpha = nxt, d, a_star
+        self._digested = (nxt, key)
         return "point", path.add_point(self.branch, a_star)
 
     def point(self, index) -> PathPoint:

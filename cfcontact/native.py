@@ -824,6 +824,9 @@ int cfc_ordinary_step(int64_t m, int64_t kc, const double *c, const double *dc, 
     for (int64_t i = 0; i < k2; i++)
         if (i != e && fabs(c2[i]) <= tolv2[i])
             return 2;
+    /* the factorization's support (rows, then m + slip: cfc_branch_small's iwork + 2m) after liout */
+    for (int64_t i = 0; i < nk[0] + nk[1]; i++)
+        liout[4 * m + 1 + i] = iwork[n2 + i];
     ires[0] = j;
     ires[1] = node;
     ires[2] = q;
@@ -1442,7 +1445,7 @@ class OrdinaryStep:
         m, n2 = self.m, 2 * self.m
         n_out = 16 * m + max(m, 1)
         out = np.empty(n_out + 28 * m + 1 + 2 * n2)  # (then W: 2m x 2)
-        ints = np.empty(n2 + m + 2 + 4 * m + 1, dtype=np.int64)
+        ints = np.empty(n2 + m + 2 + 4 * m + 1 + n2, dtype=np.int64)  # (then the support)
         small = np.empty(m + n2, dtype=np.uint8)  # codes (int8, m), imposed (bool, 2m)
         base, ib, sb = address(out), address(ints), address(small)
         nw = n_out + 28 * m + 1
@@ -1457,7 +1460,8 @@ class OrdinaryStep:
         piv = self._piv[:k].copy()
         rows, slip = ints[:k], ints[n2:n2 + ns]
         coef = out[16 * m:16 * m + ns]
-        entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
+        so = n2 + m + 3 + 4 * m
+        entry = (lu, piv, rows, slip, coef, ints[so:so + k + ns] if ns else rows)
         codes = small[:m].view(np.int8)
         L, G, E, cons, new_inputs = _line_outputs(m, out, ints, base, ib, sb)
         res = self._res
