@@ -2020,6 +2020,56 @@ class PointTableau:
         H += self.offset
         return H
 
+    #: at most this many bytes of visited states for the compiled walk (:meth:`walk`), room for
+    #: WALK_STATES_PER_NODE per node and WALK_STATES_EXTRA more (a walk that needs more starts
+    #: again in Python)
+    WALK_STATE_BYTES = 32 * 2 ** 20
+    WALK_STATES_PER_NODE, WALK_STATES_EXTRA = 4, 64
+
+    def walk(self, H, loc, sg, kind, gb, absg, tvf, tsf, spacing, sign, d, fe, delta, pivot, cons, visited,
+             maxit) -> Optional[tuple]:
+        """The lexicographic walk's loop on this tableau in one compiled call (``cfc_tableau_walk``,
+        the loop of :func:`cfcontact.exact._tableau_walk` in the same arithmetic): H its current
+        indicators (:meth:`indicators`, updated in place), loc the nodes' states (int8), sg their
+        constraints' signs (3k), kind their kinds, gb their b indicators at the point, absg, tvf,
+        tsf the point's |indicators| and tolerances (3k), spacing, sign, d, fe and delta (J,
+        updated in place) as the loop has them, the pivot and constraint tables, ``visited``:
+        (states of the nodes, orientation) pairs where the walk must not arrive, maxit its
+        iteration limit.  Returns (status, pivots (n x 5: j, indicator, old, new, d), d, fe):
+        status 0 through, 1 given up, 3 more visited states than it had room for (the tableau
+        has changed: the caller starts its loop again on a fresh one); None without the compiled
+        library or where the visited states would need more than WALK_STATE_BYTES (nothing done:
+        the caller's loop decides)."""
+        if self._lib is None:
+            return None
+        k, p = self.k, self.p
+        J = p - 1
+        cap = min(int(maxit) + len(visited) + 1,
+                  self.WALK_STATES_PER_NODE * k + self.WALK_STATES_EXTRA + len(visited))
+        if cap * max(k, 1) > self.WALK_STATE_BYTES:
+            return None
+        vstates = np.empty((cap, max(k, 1)), dtype=np.int8)
+        vd = np.empty(cap, dtype=np.int8)
+        for v, (state, dv) in enumerate(visited):
+            vstates[v, :k] = state
+            vd[v] = dv
+        piv = np.empty((min(int(maxit), cap) + 1, 5), dtype=np.int64)
+        res = np.zeros(4, dtype=np.int64)
+        dwork = np.empty(3 * k + 3 * k * J + J + 1)
+        iwork = np.empty(6 * k + 1, dtype=np.int64)
+        tangent = np.ascontiguousarray(~self.no_tangent, dtype=np.int32)
+        A_addr, rhoW_addr, work_addr, F_addr, off_addr = self._addr
+        a = native.address
+        status = self._lib.cfc_tableau_walk(
+            k, p, A_addr, 4 * k, self.rho, rhoW_addr, F_addr, off_addr, a(tangent), work_addr, a(H), a(loc), a(sg),
+            a(kind), a(gb), a(absg), a(tvf), a(tsf), spacing, int(sign), int(d), int(fe), a(delta), a(pivot), a(cons),
+            a(vstates), a(vd), len(visited), cap, int(maxit), a(piv), a(res), a(dwork), a(iwork))
+        self.updates += int(res[3])
+        if status == 3:
+            return 3, None, d, fe  # (the tableau has moved on: the caller starts again)
+        n = int(res[0]) if status == 0 else 0
+        return (0 if status == 0 else 1), piv[:n], int(res[1]), int(res[2])
+
     def change(self, j, old, new) -> bool:
         """Node j (local index) from state ``old`` to ``new``; False (tableau unchanged) when the
         update is near singular.  Its two rows of M change: the normal row between lam_n = 0 and

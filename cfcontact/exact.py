@@ -142,6 +142,8 @@ APEX_RULE = True
 #: Take ordinary transitions through the compiled step (:class:`cfcontact.native.OrdinaryStep`,
 #: where the branch kernel forms the branches): the same path as the general form, faster.
 ORDINARY_COMPILED = True
+#: Walk a degenerate point's tableau in one compiled call (PointTableau.walk): the same pivots.
+TABLEAU_COMPILED = True
 #: When neither SSNM nor the homotopy can start a path, problems with at most this many contact
 #: nodes are started from a solution found by enumeration (:mod:`cfcontact.enumerate`).
 START_ENUMERATION_MAX_NODES = 8
@@ -477,6 +479,9 @@ class _CondensedData:
         if status:
             return status, None
         a_star, a_err, j, node, ind, old, new, e, d, codes, imposed, W, entry, L, G, E, cons, new_inputs = r
+        if APEX_RULE and self.apex is not None and abs(self.apex - a_star) <= max(
+                a_err, ALPHA_ULPS * _alpha_ulp(a_star), APEX_RTOL * self.w_scale / self.dw_max):
+            return 2, None  # (possibly an apex: _apex_crossing decides)
         raw = codes.tobytes()
         key = b"exact:" + raw
         if (solver.has_factorization(key) or (raw, a_star) in lines
@@ -604,8 +609,8 @@ class _Context:
             self.condensed = False
         self.visited: dict = {}  # digest of canonical codes -> (orientation, alpha) of its first entry
         self._lines: dict = {}  # (key, alpha) -> _Line, for the current transition point
-        # ordinary transitions in one compiled call (_ordinary_transition): condensed data, no apex
-        self.fast = type(self.data) is _CondensedData and self.data.apex is None and ORDINARY_COMPILED
+        # ordinary transitions in one compiled call (_ordinary_transition): condensed data
+        self.fast = type(self.data) is _CondensedData and ORDINARY_COMPILED
         self.E = None  # perturbation loads (n x J)
         self._point = None  # the degenerate point being crossed: [its first branch, pivots so far, model]
         self.stats = {"degenerate_points": 0, "pivots": 0, "max_vanishing": 0, "branch_points": 0,
@@ -973,7 +978,29 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
     fe = 3 * je + int(first.cidx[e]) // m  # the constraint the branch was entered by
     ind = tab.indicators()
     delta = -(sign * sg[fe] * ind[fe, 1:]) / (sg[fe] * ind[fe, 0])  # the vertex's lexicographic offset
-    for _ in range(max(64, 8 * m)):
+    # the loop below in one compiled call (PointTableau.walk: the same decisions, the same bits)
+    walked = _compiled_walk(tab, ind, codes, loc, sg, kind, nodes, g, absg, tvf, tsf, spacing, sign, d, fe, delta,
+                            visited, first.codes, m) if TABLEAU_COMPILED else None
+    if walked is not None and walked[0] == 3:  # (more states than it had room for: the loop below)
+        try:
+            tab = PointTableau(ctx.solver, first.codes, ctx.data._rate_columns(J), nodes)
+        except SingularSystemError:
+            return None
+        walked = None
+        codes, loc = first.codes.copy(), first.codes[nodes].astype(np.intp)
+        sg = _CONS_SIGN[loc, kind].ravel()
+        ind = tab.indicators()
+        delta = -(sign * sg[fe] * ind[fe, 1:]) / (sg[fe] * ind[fe, 0])
+    if walked is not None:
+        status, done, d, fe, codes, ind = walked
+        if status:
+            return give_up()
+        for j, c, old, new, dd in done.tolist():
+            pivots.append({"node": int(nodes[j]), "set": SET_NAMES[c], "from": STATE_NAMES[old], "to": STATE_NAMES[new],
+                           "orientation": dd})
+        ctx.stats["pivots"] += len(done)
+        ctx.stats["tableau_updates"] += len(done)
+    for _ in (range(max(64, 8 * m)) if walked is None else ()):
         dc = sg * ind[:, 0]
         rate = d * dc
         cand = (absg <= tvf + spacing * np.abs(dc)) & (rate <= tsf) & (sg != 0.0)
@@ -1034,7 +1061,8 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
         ctx.stats["pivots"] += 1
         ctx.stats["tableau_updates"] += 1
     else:
-        return give_up()
+        if walked is None:
+            return give_up()
     # the leaving branch afresh: it must leave the point (no vanishing constraint decreasing in d)
     # with the rates the tableau gave it
     try:
@@ -1052,6 +1080,40 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
             or np.abs(rates - ind[:, 0]).max(initial=0.0) > TABLEAU_RTOL * scale):
         return give_up()
     return out, d, pivots, e_out
+
+
+def _compiled_walk(tab, ind, codes, loc, sg, kind, nodes, g, absg, tvf, tsf, spacing, sign, d, fe, delta, visited,
+                   base_codes, m):
+    """:func:`_tableau_walk`'s loop by :meth:`~cfcontact.condensed.PointTableau.walk`: (status, pivots
+    (j, indicator, old, new, d per pivot), d, fe, codes, indicators) after it -- status 0 through, 1
+    given up, 3 start again without it (the tableau has changed) -- or None where it is not
+    available (the loop in Python then).  The visited branches of the walk differ from
+    ``base_codes`` at the point's nodes only, so their states there are what is compared; those
+    that differ elsewhere can never be reached."""
+    others = np.ones(m, dtype=bool)
+    others[nodes] = False
+    states = []
+    for key, dv in visited:
+        vc = np.frombuffer(key[len(b"exact:"):], dtype=np.int8) if key.startswith(b"exact:") else None
+        if vc is None or vc.size != m:
+            return None
+        if np.array_equal(vc[others], base_codes[others]):
+            states.append((vc[nodes], dv))
+    H = np.ascontiguousarray(ind)
+    loc8 = np.ascontiguousarray(loc, dtype=np.int8)
+    sgc = np.ascontiguousarray(sg, dtype=np.float64)
+    dl = np.ascontiguousarray(delta, dtype=np.float64)
+    res = tab.walk(H, loc8, sgc, np.ascontiguousarray(kind, dtype=np.int64), np.ascontiguousarray(g[m + nodes]),
+                   np.ascontiguousarray(absg), np.ascontiguousarray(tvf), np.ascontiguousarray(tsf), spacing, sign, d, fe,
+                   dl, _PIVOT, _CONS_SIGN, states, max(64, 8 * m))
+    if res is None:
+        return None
+    status, done, d, fe = res
+    if status:
+        return status, None, d, fe, None, None
+    out = codes.copy()
+    out[nodes] = loc8
+    return 0, done, d, fe, out, H
 
 
 def _full_exit(ctx, ln: _Line, alpha) -> _Line:

@@ -78,6 +78,7 @@ _SOURCE = r"""
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 /* the rounding error of the product p = fl(a x): a x = p + e exactly */
 #ifdef __FMA__
@@ -944,6 +945,170 @@ void cfc_tableau_indicators(int64_t k, int64_t p, const double *A, int64_t lda, 
             H[(3 * j + 2) * p + l] = (gt + fx) + offset[(3 * j + 2) * p + l];
         }
 }
+/* The lexicographic walk through a degenerate point on its tableau (exact._tableau_walk's loop,
+   the same decisions in the same arithmetic): from the branch entered through the constraint fe
+   (flat index 3 j + i over the point's k nodes) in direction d with the vertex's offset delta (J),
+   pick the first vanishing constraint that decreases in d (ties: the first column of the
+   lexicographic offsets within 1e-9 of their largest, then all J columns as exact._lex_argmin),
+   its facet (pivot table; an open node that closes slips the way of its b where that is
+   measurably nonzero, else by exact._lex_sign of its perturbation row), update the tableau
+   (cfc_tableau_change; H = its indicators, 3k x p, p = 1 + J) and go on until no constraint
+   qualifies.  loc (k) are the nodes' states, sg (3k) their constraints' signs, kind (k) their
+   kinds, gb (k) their b indicators at the point, absg, tvf, tsf (3k) the point's |indicators| and
+   tolerances; visited: nv states (k each, row-major int8) with their orientations vd, where the
+   walk must not arrive (room for cap states: the walk's own are added).  piv: per pivot (j, i,
+   old, new, d).  res_i: (pivots, d, fe); delta is updated in place.  Returns 0 (no constraint
+   qualifies: the walk is through), 1 (it gives up: the general loop decides), 3 (more than cap
+   states). */
+static int64_t cfc_lex_argmin(int64_t n, int64_t J, const double *rows, int64_t *cand)
+{
+    int64_t nc = n;
+    for (int64_t i = 0; i < n; i++)
+        cand[i] = i;
+    for (int64_t c = 0; c < J; c++) {
+        double lo = INFINITY, amax = 0.0;
+        for (int64_t a = 0; a < nc; a++) {
+            const double v = rows[cand[a] * J + c];
+            lo = v < lo ? v : lo;
+            const double av = fabs(v);
+            amax = av > amax ? av : amax;
+        }
+        const double tol = 1e-9 * (amax > 1e-300 ? amax : 1e-300);
+        int64_t w = 0;
+        for (int64_t a = 0; a < nc; a++)
+            if (rows[cand[a] * J + c] <= lo + tol)
+                cand[w++] = cand[a];
+        nc = w;
+        if (nc == 1)
+            return cand[0];
+    }
+    return -1;
+}
+
+static int cfc_lex_sign(int64_t J, const double *v)
+{
+    double sc = 0.0;
+    for (int64_t l = 0; l < J; l++) {
+        const double a = fabs(v[l]);
+        sc = a > sc ? a : sc;
+    }
+    const double t = 1e-9 * (sc > 1e-300 ? sc : 1e-300);
+    for (int64_t l = 0; l < J; l++)
+        if (fabs(v[l]) > t)
+            return v[l] > 0 ? 1 : -1;
+    return 0;
+}
+
+int cfc_tableau_walk(int64_t k, int64_t p, double *A, int64_t lda, double rho, const double *rhoW, const double *F,
+                     const double *offset, const int32_t *tangent, double *work, double *H, int8_t *loc, double *sg,
+                     const int64_t *kind, const double *gb, const double *absg, const double *tvf, const double *tsf,
+                     double spacing, int64_t sign, int64_t d, int64_t fe, double *delta, const int8_t *pivot,
+                     const double *cons, int8_t *vstates, int8_t *vd, int64_t nv, int64_t cap, int64_t maxit,
+                     int64_t *piv, int64_t *res_i, double *dwork, int64_t *iwork)
+{
+    const int64_t J = p - 1, k3 = 3 * k;
+    double *dc = dwork, *rows = dwork + k3, *vec = dwork + k3 + k3 * J;
+    int64_t *D = iwork, *cand = iwork + k3;
+    int64_t np_ = 0;
+    for (int64_t it = 0; it < maxit; it++) {
+        int64_t nD = 0;
+        for (int64_t r = 0; r < k3; r++) {
+            dc[r] = sg[r] * H[r * p];
+            const double rate = (double)d * dc[r];
+            if (r != fe && absg[r] <= tvf[r] + spacing * fabs(dc[r]) && rate <= tsf[r] && sg[r] != 0.0)
+                D[nD++] = r;
+        }
+        if (!nD) {
+            res_i[0] = np_;
+            res_i[1] = d;
+            res_i[2] = fe;
+            return 0;
+        }
+        for (int64_t a = 0; a < nD; a++)
+            if ((double)d * dc[D[a]] >= -tsf[D[a]])
+                return 1;
+        int64_t f;
+        if (nD == 1)
+            f = D[0];
+        else {
+            int64_t ib = 0;
+            double best = 0.0, cmax = 0.0;
+            for (int64_t a = 0; a < nD; a++) {
+                const int64_t r = D[a];
+                const double col = (dc[r] * delta[0] + ((double)sign * sg[r]) * H[r * p + 1]) / -((double)d * dc[r]);
+                rows[a] = col;
+                if (a == 0 || col < best) {
+                    best = col;
+                    ib = a;
+                }
+                cmax = fabs(col) > cmax ? fabs(col) : cmax;
+            }
+            int64_t ties = 0;
+            for (int64_t a = 0; a < nD; a++)
+                if (rows[a] <= rows[ib] + 1e-9 * cmax)
+                    ties++;
+            if (ties > 1) {
+                for (int64_t a = 0; a < nD; a++) {
+                    const int64_t r = D[a];
+                    const double sD = (double)sign * sg[r], ad = fabs(dc[r]);
+                    for (int64_t l = 0; l < J; l++)
+                        rows[a * J + l] = (dc[r] * delta[l] + sD * H[r * p + 1 + l]) / ad;
+                }
+                ib = cfc_lex_argmin(nD, J, rows, cand);
+                if (ib < 0)
+                    return 1;
+            }
+            f = D[ib];
+        }
+        const int64_t j = f / 3, c = f % 3, old = loc[j];
+        int64_t nw = pivot[(old * 3 + kind[j]) * 3 + c];
+        if (nw == -2)
+            return 1;
+        if (nw == -1) {
+            const int64_t fb = 3 * j + 1;
+            const double b = gb[j];
+            if (fabs(b) > tvf[fb])
+                nw = b > 0 ? 2 : 3;
+            else {
+                for (int64_t l = 0; l < J; l++)
+                    vec[l] = H[fb * p] * delta[l] + (double)sign * H[fb * p + 1 + l];
+                const int sgn = cfc_lex_sign(J, vec);
+                if (!sgn)
+                    return 1;
+                nw = sgn > 0 ? 2 : 3;
+            }
+        }
+        if (!cfc_tableau_change(k, p, A, lda, j, (int)old, (int)nw, rho, rhoW, F[j], tangent[j], work))
+            return 1;
+        res_i[3] += 1; /* (the tableau's updates) */
+        loc[j] = (int8_t)nw;
+        for (int64_t q = 0; q < 3; q++)
+            sg[3 * j + q] = cons[(nw * 3 + kind[j]) * 3 + q];
+        cfc_tableau_indicators(k, p, A, lda, rho, F, offset, H);
+        const double de = sg[f] * H[f * p];
+        if (!(sg[f] != 0.0) || !(fabs(de) > tsf[f]))
+            return 1;
+        d = de > 0 ? 1 : -1;
+        const double t = (double)sign * sg[f];
+        for (int64_t l = 0; l < J; l++)
+            delta[l] = -(t * H[f * p + 1 + l]) / de;
+        fe = f;
+        piv[5 * np_] = j;
+        piv[5 * np_ + 1] = c;
+        piv[5 * np_ + 2] = old;
+        piv[5 * np_ + 3] = nw;
+        piv[5 * np_ + 4] = d;
+        np_++;
+        for (int64_t v = 0; v < nv; v++)
+            if (vd[v] == d && !memcmp(vstates + v * k, loc, (size_t)k))
+                return 1;
+        if (nv >= cap)
+            return 3;
+        memcpy(vstates + nv * k, loc, (size_t)k);
+        vd[nv++] = (int8_t)d;
+    }
+    return 1;
+}
 """
 
 _FLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-shared"]
@@ -1055,6 +1220,10 @@ def _load():
                                       i64, d, d, d, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, i64, ptr, d, ptr, ptr,
                                       ptr, d, ptr, d, d, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
     lib.cfc_ordinary_step.restype = ctypes.c_int
+    lib.cfc_tableau_walk.argtypes = [i64, i64, ptr, i64, d, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr, ptr,
+                                     ptr, ptr, d, i64, i64, i64, ptr, ptr, ptr, ptr, ptr, i64, i64, i64, ptr, ptr,
+                                     ptr, ptr]
+    lib.cfc_tableau_walk.restype = ctypes.c_int
     lib.cfc_line_constraints.argtypes = [i64, ptr, ptr, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_double,
                                          ctypes.c_double, ptr, ptr]
     lib.cfc_line_constraints.restype = i64
