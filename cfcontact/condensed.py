@@ -845,8 +845,11 @@ class CondensedSolver:
         if self.m == 0 or self.size > 1 or self._schur_dofs is not None:
             return None
         # the system's loads ride along as two more (full) columns: w1, w2 = B K^-1 (f1, f2) are
-        # needed by every path and cost no separate solve this way
-        fs = self.system.loads_numpy()
+        # needed by every path and cost no separate solve this way; so do the exact method's
+        # perturbation loads (its first degenerate point needs their data: with MUMPS a separate
+        # solve of two columns costs some five times what they add here)
+        E = self.system.perturbation_loads()
+        fs = [*self.system.loads_numpy(), *E.T]
         B = sp.vstack([self.B_local] + [sp.csr_matrix(f) for f in fs]).tocsr().sorted_indices()
         objs = []
         try:
@@ -1072,7 +1075,7 @@ class CondensedSolver:
             for c, j in enumerate(todo):
                 cached[j] = Wn[:, c].copy()
                 self._loads.append((np.array(fs[j], copy=True), cached[j]))
-            while len(self._loads) > 4:
+            while len(self._loads) > LOAD_CACHE:
                 self._loads.pop(0)
         W = np.column_stack([cached[j] for j in range(len(fs))]) if fs else np.zeros((2 * self.m, 0))
         return self._gap_shifted(W)
@@ -2123,6 +2126,9 @@ class PointTableau:
         return True
 
 
+#: The data B K^-1 f of this many loads are kept (the path's two, the exact method's perturbation
+#: loads, SSNM's start load, ...).
+LOAD_CACHE = 8
 #: The exact method's branches are solved by updates of one kept factorization (:class:`_Updater`)
 #: from this many multipliers (2m) on; below, a fresh LU per branch is cheaper than the updates'
 #: bookkeeping.

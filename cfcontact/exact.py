@@ -67,6 +67,7 @@ from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPat
 from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution, canonical_codes, indicators
 from cfcontact.start import START_RHO_FACTORS, check_request, resume_parts, start_point
 from cfcontact.stepper import StartProgress, Stepper, check_monitor, stop_only
+from cfcontact.system import PERTURBATION_COLUMNS as SYSTEM_PERTURBATION_COLUMNS
 from cfcontact.system import ContactSystem
 
 log = logging.getLogger(__name__)
@@ -91,8 +92,9 @@ ERROR_FACTOR = 16.0
 #: alpha from the node's closing is the same point.
 DATA_ULPS = 16.0
 _EPS = float(np.finfo(float).eps)
-#: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them).
-PERTURBATION_COLUMNS = 2
+#: Number of symbolic-perturbation load vectors computed at first (more when a tie survives them;
+#: cfcontact.system.PERTURBATION_COLUMNS, where the loads are defined).
+PERTURBATION_COLUMNS = SYSTEM_PERTURBATION_COLUMNS
 #: A degenerate point's intermediate branches come from rank-2 updates of one model of the point
 #: (:class:`cfcontact.condensed.PointModel`) from its this-many-th pivot on; the first ones are
 #: solved afresh (a point with few pivots does not repay the model) ...
@@ -115,8 +117,6 @@ TABLEAU_RTOL = 1e-8
 #: that.  (In units of alpha itself, a half punch lifting off at alpha = 0.05, where every contact
 #: force vanishes at once, was crossed as 23 transitions spread over 900 ulps of 0.05.)
 ALPHA_ULPS = 4.0
-#: Seed of the fixed random perturbation load vectors (the rule must be the same for every run).
-PERTURBATION_SEED = 20261201
 #: Degenerate points whose vanishing constraints involve at most this many nodes are
 #: cross-checked by enumerating the nodes' admissible states (all continuations, branch points).
 ENUMERATION_CHECK_NODES = 2
@@ -684,11 +684,8 @@ class _Context:
     def perturbation_rows(self, ln: _Line, J: int) -> np.ndarray:
         """The constraints' responses to the first J perturbation loads (k x J)."""
         if ln.P is None or ln.P.shape[1] < J:
-            n = self.system.n
             if self.E is None or self.E.shape[1] < J:
-                rng = np.random.default_rng(PERTURBATION_SEED)
-                scale = max(np.abs(self.f1).max(initial=0.0), np.abs(self.f2).max(initial=0.0), 1e-300)
-                self.E = scale * rng.standard_normal((n, max(J, PERTURBATION_COLUMNS)))
+                self.E = self.system.perturbation_loads(J)
             ln.P = self.data.perturbation(ln, self.E[:, :J])
             self.stats["perturbation_solves"] += J
         return ln.csgn[:, None] * ln.P[ln.cidx, :J]

@@ -40,6 +40,11 @@ MAGNITUDE_LIMIT = 1e100
 #: to a second); larger K (FEM models, SPD by construction when E > 0 and -1 < nu < 0.5) by
 #: the signs of its diagonal only, to spare the path a second factorization of a large K.
 INERTIA_MAX_DOFS = 50_000
+#: The exact method's perturbation loads (its lexicographic rule at degenerate points, see
+#: :meth:`ContactSystem.perturbation_loads`): fixed random vectors from this seed, this many
+#: columns to begin with (more where those tie).
+PERTURBATION_SEED = 20261201
+PERTURBATION_COLUMNS = 2
 
 
 @dataclass(eq=False)
@@ -320,6 +325,17 @@ class ContactSystem:
         if "loads" not in self._cache:
             self._cache["loads"] = (linalg.gather_vec(self.f1), linalg.gather_vec(self.f2))
         return self._cache["loads"]
+
+    def perturbation_loads(self, columns: int = PERTURBATION_COLUMNS) -> np.ndarray:
+        """The exact method's perturbation loads (n x max(columns, PERTURBATION_COLUMNS)): fixed
+        random load vectors (the same in every run: PERTURBATION_SEED), scaled to the larger of
+        the path's two loads.  The backend may form their data with its own set-up's solves
+        (:class:`~cfcontact.condensed.CondensedSolver`), the exact method asks for them at its
+        first degenerate point."""
+        f1, f2 = self.loads_numpy()
+        rng = np.random.default_rng(PERTURBATION_SEED)
+        scale = max(np.abs(f1).max(initial=0.0), np.abs(f2).max(initial=0.0), 1e-300)
+        return scale * rng.standard_normal((self.n, max(int(columns), PERTURBATION_COLUMNS)))
 
     def K_norm(self) -> float:
         """||K|| (max absolute row sum), cached; collective under MPI."""

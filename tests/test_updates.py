@@ -454,6 +454,34 @@ def test_compiled_tableau_walk_gives_the_same_path(model, monkeypatch):
     assert statuses and all(st == (3 if model == "restart" else 0) for st in statuses), statuses
 
 
+def test_perturbation_data_come_with_the_condensation(monkeypatch):
+    """Where S is formed by one multi-right-hand-side solve with K (MUMPS), the exact method's
+    perturbation loads ride along: its first degenerate point solves nothing with K (a separate
+    solve of two columns cost 0.7-0.9 ms there, a third of that point), and the path is the one
+    whose perturbation data are solved for at the point."""
+    import cfcontact.exact as exact
+    from cfcontact.bench_stress import _closing
+
+    monkeypatch.setattr(exact, "APEX_RULE", False)  # (its whole interface closes at one point: 48 nodes)
+    system = _closing(48, 0.3)
+    E = system.perturbation_loads()
+    runs = []
+    for kept in (True, False):
+        solver = CondensedSolver(system)
+        assert solver.condensation == "solves" and solver.k_factorization == "lu/mumps"
+        if not kept:  # (the set-up's data of the perturbation loads forgotten)
+            solver._loads = [(f, w) for f, w in solver._loads if not any(np.array_equal(f, e) for e in E.T)]
+        solves = []
+        dense = solver._ksolve_dense
+        monkeypatch.setattr(solver, "_ksolve_dense", lambda rhs: solves.append(rhs.shape[1]) or dense(rhs))
+        path = cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver)
+        assert path.stats["degenerate_points"] == 1 and path.stats["max_vanishing"] == 48
+        assert solves == ([] if kept else [E.shape[1]])
+        runs.append(path)
+    _same_paths(*runs)
+    assert [t.pivots for t in runs[0].transitions] == [t.pivots for t in runs[1].transitions]
+
+
 @pytest.mark.parametrize("updates", [True, False])
 def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch, updates):
     """Without cfcontact.native's kernels (no compiler, CFCONTACT_NATIVE=0) products with two
