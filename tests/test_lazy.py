@@ -94,11 +94,12 @@ def test_schur_complement_and_forward_substitutions_match_solves(fem):
     c = CondensedSolver(system)  # small and serial: PETSc's Cholesky of K, S from forward substitutions
     assert a.condensation == "schur" and b.condensation == "solves" and c.condensation == "forward"
     assert a.k_factorization == b.k_factorization == "lu/mumps" and c.k_factorization == "cholesky/petsc"
-    # the loads ride along (w1, w2 = B K^-1 f1,2 cached): by solves 2m + 2 columns in one solve call,
-    # by forward substitutions 2m + 2 of them and one backward substitution (the check); each solver
-    # first probes its solves' accuracy with one refined solve (2 solves; no refinement needed here)
+    # the loads ride along (w1, w2 = B K^-1 f1,2 cached): by solves 2m + 4 columns in one solve call
+    # (the exact method's two perturbation loads too), by forward substitutions 2m + 2 of them and
+    # one backward substitution (the check); each solver first probes its solves' accuracy with one
+    # refined solve (2 solves; no refinement needed here)
     assert all(s.refine_steps == 0 for s in (a, b, c))
-    assert a.stats.linear_solves == 2 and b.stats.linear_solves == 2 * system.m + 4
+    assert a.stats.linear_solves == 2 and b.stats.linear_solves == 2 * system.m + 6
     assert c.stats.linear_solves == 2 * system.m + 5
     # independent reference: B K^-1 B^T and B K^-1 f by a dense SciPy solve
     K, N, T, f1, f2 = system.to_scipy()
@@ -108,7 +109,7 @@ def test_schur_complement_and_forward_substitutions_match_solves(fem):
     for s in (a, b, c):
         assert np.abs(s.S - S_ref).max() <= 1e-10 * np.abs(S_ref).max(), s.condensation
         assert np.abs(s.load_data_many([f1, f2]) - W_ref).max() <= 1e-10 * np.abs(W_ref).max(), s.condensation
-    assert b.stats.linear_solves == 2 * system.m + 4 and c.stats.linear_solves == 2 * system.m + 5  # cached
+    assert b.stats.linear_solves == 2 * system.m + 6 and c.stats.linear_solves == 2 * system.m + 5  # cached
     rng = np.random.default_rng(1)
     full = DirNeuSolver(system)
     for _ in range(5):
