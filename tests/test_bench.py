@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -148,6 +149,8 @@ def test_bench_parts_c_and_d_quick(tmp_path):
         assert r["backtracks"] == 0, r  # completed without going back to a branch point
     closing = [r for r in d["rows"] if r["model"] == "closing"]
     assert all(r["max_vanishing"] >= r["m"] // 2 for r in closing), closing  # the whole interface at once
+    for r in closing:  # the point's cost: the median of three runs of its path
+        assert len(r["degenerate_times"]) == 3 and r["worst_degenerate_time"] == np.median(r["degenerate_times"])
     for name in ("demo", "blocks"):
         s = d["random_loads"][name]["summary"]
         assert s["runs"] == 4 and s["status"] == {"completed": 4} and s["backtracks"] == 0, s
