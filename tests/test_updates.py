@@ -437,15 +437,8 @@ def test_compiled_tableau_walk_gives_the_same_path(model, monkeypatch):
         monkeypatch.setattr(PointTableau, "WALK_STATES_PER_NODE", 0)
         monkeypatch.setattr(PointTableau, "WALK_STATES_EXTRA", 2)
     monkeypatch.setattr(exact, "TABLEAU_MIN_NODES", 8)
-    walks = []
-    walk = PointTableau.walk
-    monkeypatch.setattr(PointTableau, "walk", lambda *a: walks.append(walk(*a)) or walks[-1])
-    runs = {}
-    for compiled in (True, False):
-        monkeypatch.setattr(exact, "TABLEAU_COMPILED", compiled)
-        solver = CondensedSolver(system)
-        runs[compiled] = (cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver), solver)
-    (a, sa), (b, sb) = runs[True], runs[False]
+    walks = _spy(monkeypatch, PointTableau, "walk")
+    (a, sa), (b, sb) = _traced_both_ways(monkeypatch, system, "TABLEAU_COMPILED")
     # (a restarted point builds its tableau twice: the solver counts that)
     _bitwise_same_paths(a, b, sa, sb, solver_counts=model != "restart")
     assert [t.pivots for t in a.transitions] == [t.pivots for t in b.transitions]
@@ -505,6 +498,27 @@ def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch, updates):
     assert paths[True].status == "completed" and paths[True].folds and len(paths[True].transitions) > 50
 
 
+def _spy(monkeypatch, owner, name) -> list:
+    """Wrap owner.name so that every result it returns is also appended to the list returned."""
+    seen = []
+    f = getattr(owner, name)
+    monkeypatch.setattr(owner, name, lambda *a: seen.append(f(*a)) or seen[-1])
+    return seen
+
+
+def _traced_both_ways(monkeypatch, system, flag):
+    """The exact path of ``system`` with ``exact.<flag>`` True and False, each with a fresh
+    solver: ((path, solver) with, (path, solver) without)."""
+    import cfcontact.exact as exact
+
+    runs = {}
+    for on in (True, False):
+        monkeypatch.setattr(exact, flag, on)
+        solver = CondensedSolver(system)
+        runs[on] = (cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver), solver)
+    return runs[True], runs[False]
+
+
 def _bitwise_same_paths(a, b, sa, sb, solver_counts=True):
     """The same path to the last bit: transitions, stored points, branches' multipliers and
     indicators, the path's statistics and (``solver_counts``) the solver's counters."""
@@ -551,15 +565,8 @@ def test_compiled_ordinary_transitions_give_the_same_path(monkeypatch, case):
         system = ContactSystem.from_arrays(A @ A.T / n + np.eye(n), N, T, rng.standard_normal(n),
                                            rng.standard_normal(n) + np.tile([0.0, 1.0], n // 2),
                                            np.where(np.arange(m) % 4 == 1, 0.0, 1.5))
-    taken = []
-    step = exact._ordinary_transition
-    monkeypatch.setattr(exact, "_ordinary_transition", lambda *a: taken.append(step(*a)) or taken[-1])
-    runs = {}
-    for compiled in (True, False):
-        monkeypatch.setattr(exact, "ORDINARY_COMPILED", compiled)
-        solver = CondensedSolver(system)
-        runs[compiled] = (cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver), solver)
-    (a, sa), (b, sb) = runs[True], runs[False]
+    taken = _spy(monkeypatch, exact, "_ordinary_transition")
+    (a, sa), (b, sb) = _traced_both_ways(monkeypatch, system, "ORDINARY_COMPILED")
     _bitwise_same_paths(a, b, sa, sb)
     n_fast = sum(r is not None and r[0] is not None for r in taken)
     assert len(a.transitions) > 5 and n_fast >= 0.5 * len(a.transitions)
