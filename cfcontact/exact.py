@@ -978,16 +978,13 @@ def _tableau_walk(ctx: _Context, first: _Line, d: int, e: int, sign: int, a_star
     # the loop below in one compiled call (PointTableau.walk: the same decisions, the same bits)
     walked = _compiled_walk(tab, ind, codes, loc, sg, kind, nodes, g, absg, tvf, tsf, spacing, sign, d, fe, delta,
                             visited, first.codes, m) if TABLEAU_COMPILED else None
-    if walked is not None and walked[0] == 3:  # (more states than it had room for: the loop below)
-        try:
+    if walked is not None and walked[0] == 3:  # (more states than it had room for: the loop below,
+        try:                                   # on a fresh tableau; the walk changed only its own)
             tab = PointTableau(ctx.solver, first.codes, ctx.data._rate_columns(J), nodes)
         except SingularSystemError:
             return None
         walked = None
-        codes, loc = first.codes.copy(), first.codes[nodes].astype(np.intp)
-        sg = _CONS_SIGN[loc, kind].ravel()
         ind = tab.indicators()
-        delta = -(sign * sg[fe] * ind[fe, 1:]) / (sg[fe] * ind[fe, 0])
     if walked is not None:
         status, done, d, fe, codes, ind = walked
         if status:
@@ -1086,7 +1083,8 @@ def _compiled_walk(tab, ind, codes, loc, sg, kind, nodes, g, absg, tvf, tsf, spa
     given up, 3 start again without it (the tableau has changed) -- or None where it is not
     available (the loop in Python then).  The visited branches of the walk differ from
     ``base_codes`` at the point's nodes only, so their states there are what is compared; those
-    that differ elsewhere can never be reached."""
+    that differ elsewhere can never be reached.  The caller's arrays are left as they are (the walk
+    works on copies), so that its loop can start again from them."""
     others = np.ones(m, dtype=bool)
     others[nodes] = False
     states = []
@@ -1096,10 +1094,10 @@ def _compiled_walk(tab, ind, codes, loc, sg, kind, nodes, g, absg, tvf, tsf, spa
             return None
         if np.array_equal(vc[others], base_codes[others]):
             states.append((vc[nodes], dv))
-    H = np.ascontiguousarray(ind)
-    loc8 = np.ascontiguousarray(loc, dtype=np.int8)
-    sgc = np.ascontiguousarray(sg, dtype=np.float64)
-    dl = np.ascontiguousarray(delta, dtype=np.float64)
+    H = np.array(ind, dtype=np.float64, order="C")
+    loc8 = np.array(loc, dtype=np.int8)
+    sgc = np.array(sg, dtype=np.float64)
+    dl = np.array(delta, dtype=np.float64)
     res = tab.walk(H, loc8, sgc, np.ascontiguousarray(kind, dtype=np.int64), np.ascontiguousarray(g[m + nodes]),
                    np.ascontiguousarray(absg), np.ascontiguousarray(tvf), np.ascontiguousarray(tsf), spacing, sign, d, fe,
                    dl, _PIVOT, _CONS_SIGN, states, max(64, 8 * m))

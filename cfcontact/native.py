@@ -1418,6 +1418,18 @@ def first_root(c: np.ndarray, dc: np.ndarray, tol_v: np.ndarray, tol_s: np.ndarr
     return float(res[0]), tied[:n], float(res[1])
 
 
+def _kept_entry(m: int, k: int, ns: int, lu, piv, ints: np.ndarray, out: np.ndarray, support=None) -> tuple:
+    """The factorization entry (lu, piv, rows, slip, coef, support) as
+    :meth:`~cfcontact.condensed.CondensedSolver._factor_reduced` keeps it, from the kernel's
+    outputs (rows: ints[:k], slip: ints[2m:2m + ns], coef: out[16m:16m + ns]); ``support``: rows
+    and m + slip, when the kernel formed it too."""
+    rows, slip = ints[:k], ints[2 * m:2 * m + ns]
+    coef = out[16 * m:16 * m + ns]
+    if not ns:
+        return lu, piv, rows, slip, coef, rows
+    return lu, piv, rows, slip, coef, (np.concatenate([rows, m + slip]) if support is None else support)
+
+
 def _line_outputs(m: int, out: np.ndarray, ints: np.ndarray, base: int, ib: int, codes_addr: int) -> tuple:
     """The views of a branch formed by cfc_branch_line in ``out`` / ``ints`` (addresses base, ib):
     (L, G, E, constraints, inputs) -- constraints as :func:`line_constraints` gives them, inputs
@@ -1531,9 +1543,7 @@ class BranchKernel:
             return None
         if entry is None:
             k, ns = int(ints[n2 + m]), int(ints[n2 + m + 1])
-            rows, slip = ints[:k], ints[n2:n2 + ns]
-            coef = out[16 * m:16 * m + ns]
-            entry = (lu, piv, rows, slip, coef, np.concatenate([rows, m + slip]) if ns else rows)
+            entry = _kept_entry(m, k, ns, lu, piv, ints, out)
         if request is not None:
             L, G, E, cons, inputs = _line_outputs(m, out, ints, base, ib, address(codes))
             return entry, L, G, E, (cons, inputs)
@@ -1627,10 +1637,8 @@ class OrdinaryStep:
         k, ns = ints[n2 + m:n2 + m + 2].tolist()
         lu = self._lu[:k * k].reshape((k, k), order="F").copy(order="F")
         piv = self._piv[:k].copy()
-        rows, slip = ints[:k], ints[n2:n2 + ns]
-        coef = out[16 * m:16 * m + ns]
         so = n2 + m + 3 + 4 * m
-        entry = (lu, piv, rows, slip, coef, ints[so:so + k + ns] if ns else rows)
+        entry = _kept_entry(m, k, ns, lu, piv, ints, out, ints[so:so + k + ns])
         codes = small[:m].view(np.int8)
         L, G, E, cons, new_inputs = _line_outputs(m, out, ints, base, ib, sb)
         res = self._res
