@@ -332,6 +332,8 @@ class ContactSystem:
         the path's two loads.  The backend may form their data with its own set-up's solves
         (:class:`~cfcontact.condensed.CondensedSolver`), the exact method asks for them at its
         first degenerate point."""
+        if isinstance(columns, bool) or not isinstance(columns, (int, np.integer)) or columns < 1:
+            raise InputError(f"perturbation_loads: columns must be a positive integer, got {columns!r}")
         f1, f2 = self.loads_numpy()
         rng = np.random.default_rng(PERTURBATION_SEED)
         scale = max(np.abs(f1).max(initial=0.0), np.abs(f2).max(initial=0.0), 1e-300)

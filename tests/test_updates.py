@@ -473,6 +473,13 @@ def test_perturbation_data_come_with_the_condensation(monkeypatch):
         runs.append(path)
     _same_paths(*runs)
     assert [t.pivots for t in runs[0].transitions] == [t.pivots for t in runs[1].transitions]
+    # the loads themselves: fixed (the same in every call), at least the default columns
+    again = system.perturbation_loads(1)
+    assert again.shape == E.shape and np.array_equal(again, E)
+    assert system.perturbation_loads(5).shape == (system.n, 5)
+    for bad in (0, -2, 2.5, "2", True):
+        with pytest.raises(cfcontact.InputError, match="columns must be a positive integer"):
+            system.perturbation_loads(bad)
 
 
 @pytest.mark.parametrize("updates", [True, False])
