@@ -74,6 +74,14 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
     if fvec.shape != (n,):
         raise InputError(f"load vector has length {fvec.size}, expected n = {n}")
     w = solver.load_data(fvec)
+    # the size of w's own terms: at a transition point a difference of them vanishes (an open node
+    # touching its foundation: B K^-1 f(alpha) = g), and what rounding leaves there is judged
+    # against them, not against w
+    gap = np.concatenate([system.gap, np.zeros(m)]) if system.has_gap else np.zeros(2 * m)
+    w_terms = np.abs(w) + np.abs(gap)
+    if f is None:
+        W = solver.load_data_many(list(system.loads_numpy())) + gap[:, None]  # B K^-1 (f1, f2)
+        w_terms = np.maximum(w_terms, abs(1.0 - alpha) * np.abs(W[:, 0]) + abs(alpha) * np.abs(W[:, 1]) + np.abs(gap))
     S = solver.S
     F = system.friction_vector
     rho = system.rho
@@ -109,9 +117,9 @@ def enumerate_solutions(system: ContactSystem, alpha: float = 0.0, max_nodes: in
         # pulled 1e12 away from its foundation made a neighbour's lam_n = -1 and a slip against
         # its force look like rounding): a closed node's a and a sticking node's b+- are forces
         # (lam_n >= 0, |lam_t| <= F lam_n), judged against the forces; an open node's gap and a
-        # slipping node's slip against the terms of their own row of rho (w - S lam), whose
-        # rounding also bounds a force condition's imposed row
-        terms = rho * (np.abs(w)[None] + np.abs(lam) @ np.abs(S).T)
+        # slipping node's slip against the terms of their own row of rho (w - S lam), w's own
+        # terms included, whose rounding also bounds a force condition's imposed row
+        terms = rho * (w_terms[None] + np.abs(lam) @ np.abs(S).T)
         tn, tt = terms[:, :m], terms[:, m:]
         eps64 = 64.0 * np.finfo(float).eps
         force = FORCE_SLACK * np.abs(lam).max(axis=1, initial=0.0)[:, None]

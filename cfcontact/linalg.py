@@ -14,6 +14,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from cfcontact import native
+from cfcontact.errors import SingularSystemError
 
 
 def ownership(n: int, comm) -> np.ndarray:
@@ -163,6 +164,108 @@ def rcm_envelope(A: sp.spmatrix) -> int:
     empty = np.diff(P.indptr) == 0
     first = np.where(empty, rows, np.minimum(first, rows))
     return int((rows - first + 1).sum())
+
+
+class EnvelopeCholesky:
+    """K = P^T L D L^T P for a sparse symmetric positive definite K (one rank): P the reverse
+    Cuthill-McKee order of K's graph, L unit lower triangular and D diagonal, held in envelope
+    (profile) storage -- each row of L from its first non-zero column to the diagonal -- and
+    computed by :mod:`cfcontact.native`'s compiled kernels.  For the small and the long thin
+    bodies whose RCM envelope is small (:data:`cfcontact.condensed.NATIVE_MAX_DOFS`,
+    ``NATIVE_ENVELOPE_PER_DOF``) this is what PETSc's own Cholesky computes, without its
+    symbolic phase and per-call set-up: on the two steel blocks (n = 1320, envelope 34 732
+    entries, the same as PETSc's factor) 0.24 ms against PETSc's 1.5 ms.  Its forward
+    substitutions start at each right-hand side's first non-zero row in that order
+    (:meth:`forward_rows`: B's rows for S = X X^T), four columns at a time.
+
+    :meth:`factor` returns None without the compiled library (the caller uses PETSc then) and
+    raises SingularSystemError when a pivot is not positive (K singular or indefinite)."""
+
+    def __init__(self, lib, perm: np.ndarray, first: np.ndarray, ptr: np.ndarray, v: np.ndarray):
+        self._lib = lib
+        self.n = perm.size
+        self.perm = perm
+        self.iperm = np.empty_like(perm)
+        self.iperm[perm] = np.arange(self.n)
+        self._first, self._ptr, self._v = first, ptr, v
+        self._sqrt_d = np.sqrt(v[ptr[1:] - 1])
+        self._args = (self.n, native.address(first), native.address(ptr), native.address(v))
+
+    @classmethod
+    def factor(cls, A: sp.spmatrix) -> "EnvelopeCholesky | None":
+        lib = native.library()
+        if lib is None:
+            return None
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        A = sp.csr_matrix(A)
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ValueError(f"EnvelopeCholesky needs a square matrix, not {A.shape[0]} x {A.shape[1]}")
+        perm = np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
+        iperm = np.empty(n, dtype=np.int64)
+        iperm[perm] = np.arange(n)
+        indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)
+        data = np.ascontiguousarray(A.data, dtype=np.float64)
+        first, ptr = np.empty(n, dtype=np.int64), np.empty(n + 1, dtype=np.int64)
+        a = native.address
+        size = lib.cfc_env_pattern(n, a(indptr), a(indices), a(iperm), a(first), a(ptr))
+        v = np.zeros(max(size, 1))
+        lib.cfc_env_fill(n, a(indptr), a(indices), a(data), a(iperm), a(first), a(ptr), a(v))
+        bad = lib.cfc_env_ldlt(n, a(first), a(ptr), a(v))
+        if bad:
+            dof = int(perm[bad - 1])
+            raise SingularSystemError(f"K is singular or not positive definite: its Cholesky factorization broke "
+                                      f"down at DOF {dof} (pivot {bad} of {n}); every body needs a Dirichlet "
+                                      f"condition")
+        return cls(lib, perm, first, ptr, v)
+
+    @property
+    def entries(self) -> int:
+        """The factor's stored entries (its envelope)."""
+        return int(self._ptr[-1])
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """K^-1 b (b: n, or n x k)."""
+        b = np.asarray(b, dtype=np.float64)
+        X = np.asfortranarray(b[self.perm].reshape(self.n, -1))
+        k = X.shape[1]
+        self._lib.cfc_env_forward(*self._args, k, native.address(X), max(self.n, 1), None, None)
+        self._lib.cfc_env_backward(*self._args, k, native.address(X), max(self.n, 1))
+        out = np.empty_like(X)
+        out[self.perm] = X
+        return out.reshape(b.shape)
+
+    def forward_rows(self, B: sp.csr_matrix, dense=()) -> np.ndarray:
+        """X = D^-1/2 L^-1 P [B^T, dense...] as rows, so that B K^-1 B^T = X_B X_B^T (k x n,
+        C-ordered: the transpose of an n x k Fortran array; B: k0 x n CSR without duplicate
+        entries, ``dense``: full vectors).  Each of B's columns is substituted from its first
+        non-zero row on, in groups of four with close first rows."""
+        n, k0 = self.n, B.shape[0]
+        k = k0 + len(dense)
+        rows = np.repeat(np.arange(k0), np.diff(B.indptr))
+        pos = self.iperm[B.indices]
+        start = np.full(k, n, dtype=np.int64)
+        np.minimum.at(start, rows, pos)
+        start[k0:] = 0
+        order = np.argsort(start, kind="stable")  # columns with close starts substituted together
+        X = np.zeros((n, k), order="F")
+        X[pos, rows] = B.data
+        for j, f in enumerate(dense):
+            X[:, k0 + j] = np.asarray(f, dtype=np.float64)[self.perm]
+        start = np.ascontiguousarray(start[order])
+        self._lib.cfc_env_forward(*self._args, k, native.address(X), max(n, 1), native.address(start),
+                                  native.address(order))
+        X /= self._sqrt_d[:, None]
+        return X.T
+
+    def backward_row(self, x: np.ndarray) -> np.ndarray:
+        """K^-1 b from x = D^-1/2 L^-1 P b (a row of :meth:`forward_rows`)."""
+        y = np.asfortranarray((x * self._sqrt_d).reshape(self.n, 1))
+        self._lib.cfc_env_backward(*self._args, 1, native.address(y), max(self.n, 1))
+        out = np.empty(self.n)
+        out[self.perm] = y[:, 0]
+        return out
 
 
 def inertia(A):

@@ -1109,6 +1109,138 @@ int cfc_tableau_walk(int64_t k, int64_t p, double *A, int64_t lda, double rho, c
     }
     return 1;
 }
+
+/* ---- envelope (profile) LDL^T of a sparse symmetric positive definite matrix ----
+   Row p of the factor (in the permuted order p = iperm[i]) holds columns first[p] .. p at
+   v[ptr[p] .. ptr[p+1]-1], the diagonal last: the strict lower part is L (unit diagonal
+   implied), the diagonal D. */
+
+/* first[] and ptr[] of A's lower envelope in the order iperm (A: CSR, both triangles); ptr[n] */
+int64_t cfc_env_pattern(int64_t n, const int64_t *indptr, const int64_t *indices, const int64_t *iperm,
+                        int64_t *first, int64_t *ptr)
+{
+    for (int64_t i = 0; i < n; i++) {
+        const int64_t p = iperm[i];
+        int64_t f = p;
+        for (int64_t t = indptr[i]; t < indptr[i + 1]; t++) {
+            const int64_t q = iperm[indices[t]];
+            if (q < f) f = q;
+        }
+        first[p] = f;
+    }
+    ptr[0] = 0;
+    for (int64_t p = 0; p < n; p++)
+        ptr[p + 1] = ptr[p] + (p - first[p] + 1);
+    return ptr[n];
+}
+
+/* A's lower triangle (in the order iperm) scattered into the envelope v (zeroed by the caller) */
+void cfc_env_fill(int64_t n, const int64_t *indptr, const int64_t *indices, const double *data,
+                  const int64_t *iperm, const int64_t *first, const int64_t *ptr, double *v)
+{
+    for (int64_t i = 0; i < n; i++) {
+        const int64_t p = iperm[i];
+        double *rp = v + ptr[p] - first[p];
+        for (int64_t t = indptr[i]; t < indptr[i + 1]; t++) {
+            const int64_t q = iperm[indices[t]];
+            if (q <= p) rp[q] += data[t];
+        }
+    }
+}
+
+/* the factorization, in place (row by row: g = L D of row i against the rows before it, then
+   L and D); 0, or i + 1 when pivot i is not positive (A not positive definite) */
+int64_t cfc_env_ldlt(int64_t n, const int64_t *first, const int64_t *ptr, double *v)
+{
+    for (int64_t i = 0; i < n; i++) {
+        const int64_t fi = first[i];
+        double *ri = v + ptr[i] - fi;
+        for (int64_t j = fi; j < i; j++) {
+            const int64_t fj = first[j];
+            const double *rj = v + ptr[j] - fj;
+            double s = ri[j];
+            for (int64_t k = fi > fj ? fi : fj; k < j; k++)
+                s -= ri[k] * rj[k];
+            ri[j] = s;
+        }
+        double d = ri[i];
+        for (int64_t j = fi; j < i; j++) {
+            const double g = ri[j], l = g / v[ptr[j + 1] - 1];
+            ri[j] = l;
+            d -= g * l;
+        }
+        if (!(d > 0.0))
+            return i + 1;
+        ri[i] = d;
+    }
+    return 0;
+}
+
+/* x <- L^-1 x for nc columns of x (column-major, leading dimension ldx), four at a time, in the
+   order cols[0..nc-1] (NULL: 0..nc-1); the c-th of them is zero above row start[c] (start ==
+   NULL: no such rows), which a group of four skips down to its smallest start (the zeros in
+   between stay exact zeros) */
+void cfc_env_forward(int64_t n, const int64_t *first, const int64_t *ptr, const double *v, int64_t nc,
+                     double *x, int64_t ldx, const int64_t *start, const int64_t *cols)
+{
+    int64_t c = 0;
+    for (; c + 4 <= nc; c += 4) {
+        double *x0 = x + (cols ? cols[c] : c) * ldx, *x1 = x + (cols ? cols[c + 1] : c + 1) * ldx;
+        double *x2 = x + (cols ? cols[c + 2] : c + 2) * ldx, *x3 = x + (cols ? cols[c + 3] : c + 3) * ldx;
+        int64_t s0 = 0;
+        if (start) {
+            s0 = start[c];
+            for (int q = 1; q < 4; q++)
+                if (start[c + q] < s0) s0 = start[c + q];
+        }
+        for (int64_t i = s0; i < n; i++) {
+            const int64_t fi = first[i];
+            const double *ri = v + ptr[i] - fi;
+            double a0 = x0[i], a1 = x1[i], a2 = x2[i], a3 = x3[i];
+            for (int64_t k = fi > s0 ? fi : s0; k < i; k++) {
+                const double l = ri[k];
+                a0 -= l * x0[k];
+                a1 -= l * x1[k];
+                a2 -= l * x2[k];
+                a3 -= l * x3[k];
+            }
+            x0[i] = a0;
+            x1[i] = a1;
+            x2[i] = a2;
+            x3[i] = a3;
+        }
+    }
+    for (; c < nc; c++) {
+        double *xc = x + (cols ? cols[c] : c) * ldx;
+        const int64_t s0 = start ? start[c] : 0;
+        for (int64_t i = s0; i < n; i++) {
+            const int64_t fi = first[i];
+            const double *ri = v + ptr[i] - fi;
+            double a = xc[i];
+            for (int64_t k = fi > s0 ? fi : s0; k < i; k++)
+                a -= ri[k] * xc[k];
+            xc[i] = a;
+        }
+    }
+}
+
+/* x <- L^-T D^-1 x for nc columns (the rest of a solve after cfc_env_forward) */
+void cfc_env_backward(int64_t n, const int64_t *first, const int64_t *ptr, const double *v, int64_t nc,
+                      double *x, int64_t ldx)
+{
+    for (int64_t c = 0; c < nc; c++) {
+        double *xc = x + c * ldx;
+        for (int64_t i = 0; i < n; i++)
+            xc[i] /= v[ptr[i + 1] - 1];
+        for (int64_t i = n - 1; i > 0; i--) {
+            const int64_t fi = first[i];
+            const double *ri = v + ptr[i] - fi;
+            const double xi = xc[i];
+            for (int64_t k = fi; k < i; k++)
+                xc[k] -= ri[k] * xi;
+        }
+    }
+}
 """
 
 _FLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-fPIC", "-shared"]
@@ -1235,6 +1367,16 @@ def _load():
     lib.cfc_tableau_change.restype = ctypes.c_int
     lib.cfc_tableau_indicators.argtypes = [i64, i64, ptr, i64, ctypes.c_double, ptr, ptr, ptr]
     lib.cfc_tableau_indicators.restype = None
+    lib.cfc_env_pattern.argtypes = [i64, ptr, ptr, ptr, ptr, ptr]
+    lib.cfc_env_pattern.restype = i64
+    lib.cfc_env_fill.argtypes = [i64, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
+    lib.cfc_env_fill.restype = None
+    lib.cfc_env_ldlt.argtypes = [i64, ptr, ptr, ptr]
+    lib.cfc_env_ldlt.restype = i64
+    lib.cfc_env_forward.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64, ptr, ptr]
+    lib.cfc_env_forward.restype = None
+    lib.cfc_env_backward.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
+    lib.cfc_env_backward.restype = None
     return lib
 
 

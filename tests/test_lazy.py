@@ -4,6 +4,7 @@ complement for S, reduced dense systems, batched displacements and the condensed
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from petsc4py import PETSc
 
 import cfcontact
 from cfcontact import condensed, linalg
@@ -91,22 +92,24 @@ def test_schur_complement_and_forward_substitutions_match_solves(fem):
                                    tractions2={"top1": (1e8, -1e7)}) if fem
               else random_system(4, 7, friction=0.8, extra_dofs=6))
     a, b = CondensedSolver(system, schur=True), CondensedSolver(system, options=MUMPS, schur=False)
-    c = CondensedSolver(system)  # small and serial: PETSc's Cholesky of K, S from forward substitutions
-    assert a.condensation == "schur" and b.condensation == "solves" and c.condensation == "forward"
-    assert a.k_factorization == b.k_factorization == "lu/mumps" and c.k_factorization == "cholesky/petsc"
+    c = CondensedSolver(system)  # small and serial: K's envelope Cholesky, S from forward substitutions
+    d = CondensedSolver(system, options=SolverOptions(solver_type="petsc"))  # the same with PETSc's Cholesky
+    assert a.condensation == "schur" and b.condensation == "solves" and c.condensation == d.condensation == "forward"
+    assert a.k_factorization == b.k_factorization == "lu/mumps"
+    assert c.k_factorization == "cholesky/envelope" and d.k_factorization == "cholesky/petsc"
     # the loads ride along (w1, w2 = B K^-1 f1,2 cached): by solves 2m + 4 columns in one solve call
     # (the exact method's two perturbation loads too), by forward substitutions 2m + 2 of them and
     # one backward substitution (the check); each solver first probes its solves' accuracy with one
     # refined solve (2 solves; no refinement needed here)
-    assert all(s.refine_steps == 0 for s in (a, b, c))
+    assert all(s.refine_steps == 0 for s in (a, b, c, d))
     assert a.stats.linear_solves == 2 and b.stats.linear_solves == 2 * system.m + 6
-    assert c.stats.linear_solves == 2 * system.m + 5
+    assert c.stats.linear_solves == d.stats.linear_solves == 2 * system.m + 5
     # independent reference: B K^-1 B^T and B K^-1 f by a dense SciPy solve
     K, N, T, f1, f2 = system.to_scipy()
     B = np.vstack([N.toarray(), T.toarray()])
     X = np.linalg.solve(K.toarray(), np.column_stack([B.T, f1, f2]))
     S_ref, W_ref = B @ X[:, :-2], B @ X[:, -2:]
-    for s in (a, b, c):
+    for s in (a, b, c, d):
         assert np.abs(s.S - S_ref).max() <= 1e-10 * np.abs(S_ref).max(), s.condensation
         assert np.abs(s.load_data_many([f1, f2]) - W_ref).max() <= 1e-10 * np.abs(W_ref).max(), s.condensation
     assert b.stats.linear_solves == 2 * system.m + 6 and c.stats.linear_solves == 2 * system.m + 5  # cached
@@ -187,13 +190,30 @@ def test_forward_substitutions_refuse_a_singular_K():
 
 
 def test_solver_type_selects_the_factorization_of_K(monkeypatch):
+    """Small or thin K on one rank: the envelope Cholesky (compiled), or PETSc's when solver_type
+    says so, when the user set options for K's solver, or without the compiled kernels; wider
+    bands: MUMPS."""
+    from cfcontact import native
+
     system = random_system(4, 3, friction=0.8, extra_dofs=6)
-    assert CondensedSolver(system, options=SolverOptions(solver_type="petsc")).condensation == "forward"
+    assert CondensedSolver(system).k_factorization == "cholesky/envelope"
+    petsc = CondensedSolver(system, options=SolverOptions(solver_type="petsc"))
+    assert petsc.k_factorization == "cholesky/petsc" and petsc.condensation == "forward"
     assert CondensedSolver(system, options=MUMPS).k_factorization == "lu/mumps"
+    opts = PETSc.Options()
+    opts["cfcontact_K_pc_factor_ordering_type"] = "nd"
+    try:
+        assert CondensedSolver(system).k_factorization == "cholesky/petsc"
+    finally:
+        opts.delValue("cfcontact_K_pc_factor_ordering_type")
+    with monkeypatch.context() as mp:
+        mp.setattr(native, "_tried", True)
+        mp.setattr(native, "_lib", None)
+        assert CondensedSolver(system).k_factorization == "cholesky/petsc"
     monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: K's envelope decides
     per_dof = linalg.rcm_envelope(linalg.local_csr(system.K)) / system.n
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", per_dof)
-    assert CondensedSolver(system).k_factorization == "cholesky/petsc"
+    assert CondensedSolver(system).k_factorization == "cholesky/envelope"
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", 0.99 * per_dof)  # a wider band: MUMPS
     assert CondensedSolver(system).k_factorization == "lu/mumps"
 

@@ -432,3 +432,74 @@ def test_compiled_first_root_gives_the_numpy_bits(monkeypatch):
             np.testing.assert_array_equal(got[1], ref[1])
             seen["tied" if ref[1].size > 1 else "single"] += 1
     assert min(seen.values()) > 20, seen
+
+
+def _spd(n, seed, density=0.02):
+    """A sparse SPD matrix on a random graph (its RCM envelope is not a band of the given order),
+    scaled over eight decades (diagonal scaling keeps it SPD)."""
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=density, random_state=seed, format="csr")
+    A = A + A.T
+    A = (A + sp.diags(np.abs(A).sum(axis=1).A1 + 1.0)).tocsr()
+    d = sp.diags(np.exp(rng.uniform(-9, 9, n)))
+    return (d @ A @ d).tocsr()
+
+
+@pytest.mark.parametrize("n,seed", [(1, 0), (7, 1), (120, 2), (400, 3)])
+def test_envelope_cholesky_against_dense_solves(n, seed):
+    """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
+    one and of several columns (a group of four and single ones), and the forward substitutions
+    of sparse rows -- some empty, some starting late in RCM order -- with dense columns beside:
+    X X^T = B A^-1 B^T, X_B X_f^T = B A^-1 f, and the backward substitution of a row."""
+    A = _spd(n, seed)
+    E = linalg.EnvelopeCholesky.factor(A)
+    assert E is not None and E.entries >= n
+    Ad = A.toarray()
+    rng = np.random.default_rng(seed)
+    b = rng.standard_normal((n, 7))
+    x_ref = np.linalg.solve(Ad, b)
+    tol = 1e-9 * np.abs(x_ref).max()
+    assert np.abs(E.solve(b) - x_ref).max() <= tol
+    assert np.abs(E.solve(b[:, 3]) - x_ref[:, 3]).max() <= tol
+    k = 9
+    B = sp.random(k, n, density=min(1.0, 3.0 / n), random_state=seed + 1, format="lil")
+    B[0, :] = 0.0
+    B[0, n - 1] = 2.0  # a row whose only entry may come last in RCM order
+    if k > 3:
+        B[3, :] = 0.0  # an empty row: its column of X stays zero
+    B = sp.csr_matrix(B)
+    f = rng.standard_normal((2, n))
+    X = E.forward_rows(B, list(f))
+    assert X.shape == (k + 2, n)
+    Bd = B.toarray()
+    Y = np.linalg.solve(Ad, np.column_stack([Bd.T, f.T]))
+    S_ref, W_ref = Bd @ Y[:, :k], Bd @ Y[:, k:]
+    S, W = X[:k] @ X[:k].T, X[:k] @ X[k:].T
+    assert np.abs(S - S_ref).max() <= 1e-9 * np.abs(S_ref).max()
+    assert np.abs(W - W_ref).max() <= 1e-9 * np.abs(W_ref).max()
+    assert not X[3].any()
+    z = E.backward_row(X[0])
+    assert np.abs(z - Y[:, 0]).max() <= 1e-9 * np.abs(Y[:, 0]).max()
+
+
+def test_envelope_cholesky_refuses_what_is_not_positive_definite():
+    """A singular and an indefinite matrix: SingularSystemError naming the DOF where the
+    factorization broke down; no compiled kernels: None (the caller uses PETSc)."""
+    from cfcontact.errors import SingularSystemError
+
+    A = _spd(30, 4).tolil()
+    A[5, :] = 0.0
+    A[:, 5] = 0.0
+    with pytest.raises(SingularSystemError, match="DOF 5 "):
+        linalg.EnvelopeCholesky.factor(A.tocsr())
+    A = sp.diags([1.0, -2.0, 3.0]).tocsr()
+    with pytest.raises(SingularSystemError, match="not positive definite.*DOF 1 "):
+        linalg.EnvelopeCholesky.factor(A)
+    with pytest.raises(ValueError, match="square"):
+        linalg.EnvelopeCholesky.factor(sp.csr_matrix(np.ones((2, 3))))
+
+
+def test_envelope_cholesky_needs_the_compiled_kernels(monkeypatch):
+    monkeypatch.setattr(native, "_tried", True)
+    monkeypatch.setattr(native, "_lib", None)
+    assert linalg.EnvelopeCholesky.factor(_spd(10, 5)) is None
