@@ -801,8 +801,9 @@ class CondensedSolver:
         return self._ksolve_dense(np.asfortranarray(self.B_local[cols, :].T.toarray()))
 
     def _condense_forward(self) -> Optional[np.ndarray]:
-        """S and w1, w2 = B K^-1 (f1, f2) from forward substitutions alone, with PETSc's Cholesky
-        factor K = U^T D U (one rank): MatForwardSolve gives x = (U^T D^(1/2))^-1 b, so with X the
+        """S and w1, w2 = B K^-1 (f1, f2) from forward substitutions alone, with K's Cholesky factor
+        (one rank; the envelope factor's :meth:`~cfcontact.linalg.EnvelopeCholesky.forward_gram`,
+        or PETSc's K = U^T D U: MatForwardSolve gives x = (U^T D^(1/2))^-1 b), so with X the
         forward substitutions of B's rows, B K^-1 B^T = X X^T and B K^-1 f = X x_f -- half of each
         solve, and S symmetric positive semidefinite by construction.  One check at the end: the
         backward substitution of X's first row gives z = K^-1 b_0 (b_0 = B's first row), which
@@ -818,8 +819,11 @@ class CondensedSolver:
             B = B.copy()
             B.sum_duplicates()
         if self._envelope is not None:  # all columns in one call, each from its first non-zero row
-            X = self._envelope.forward_rows(B, fs)
-            b0 = B[0].toarray().ravel()
+            G, x0 = self._envelope.forward_gram(B, fs)
+            finite = np.isfinite(G).all() and np.isfinite(x0).all()
+            S, W = G[:m2, :m2], G[:m2, m2:]
+            b0 = np.zeros(self.n)
+            b0[B.indices[:B.indptr[1]]] = B.data[:B.indptr[1]]
             backward = self._envelope.backward_row
         else:
             fm = self.ksp.getPC().getFactorMatrix()
@@ -827,21 +831,21 @@ class CondensedSolver:
             if X is None:
                 return None
             b0 = X[m2 + 2]  # (the work row holding B's first row)
-            X = X[:m2 + 2]
+            finite = np.isfinite(X[:m2 + 2]).all()
+            XB, x0 = X[:m2], X[0]
+            S = XB @ XB.T
+            W = XB @ X[m2:m2 + 2].T
 
             def backward(x):
                 z = np.empty(self.n)
                 self._on_arrays(fm.solveBackward, x, z)
                 return z
         self.stats.linear_solves += m2 + 2
-        if not np.isfinite(X).all():
+        if not finite:
             raise SingularSystemError("K is singular or not positive definite (its Cholesky factorization broke "
                                       "down; every body needs a Dirichlet condition)")
-        XB = X[:m2]
-        S = XB @ XB.T
-        W = XB @ X[m2:].T
         # check: z = K^-1 b_0 by the backward substitution of x_0
-        z, Kz = backward(X[0]), np.empty(self.n)
+        z, Kz = backward(x0), np.empty(self.n)
         self.stats.linear_solves += 1
         self._on_arrays(self.system.K.mult, z, Kz)
         nb, nz = np.abs(b0).max(), np.abs(z).max()

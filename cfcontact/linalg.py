@@ -176,7 +176,7 @@ class EnvelopeCholesky:
     symbolic phase and per-call set-up: on the two steel blocks (n = 1320, envelope 34 732
     entries, the same as PETSc's factor) 0.24 ms against PETSc's 1.5 ms.  Its forward
     substitutions start at each right-hand side's first non-zero row in that order
-    (:meth:`forward_rows`: B's rows for S = X X^T), four columns at a time.
+    (:meth:`forward_gram`: S from B's rows), 32 columns at a time.
 
     :meth:`factor` returns None without the compiled library (the caller uses PETSc then) and
     raises SingularSystemError when a pivot is not positive (K singular or indefinite)."""
@@ -236,11 +236,13 @@ class EnvelopeCholesky:
         out[self.perm] = X
         return out.reshape(b.shape)
 
-    def forward_rows(self, B: sp.csr_matrix, dense=()) -> np.ndarray:
-        """X = D^-1/2 L^-1 P [B^T, dense...] as rows, so that B K^-1 B^T = X_B X_B^T (k x n,
-        C-ordered: the transpose of an n x k Fortran array; B: k0 x n CSR without duplicate
-        entries, ``dense``: full vectors).  Each of B's columns is substituted from its first
-        non-zero row on, in groups of four with close first rows."""
+    def forward_gram(self, B: sp.csr_matrix, dense=()) -> tuple:
+        """(G, y0): G = Y^T Y for Y = D^-1/2 L^-1 P [B^T, dense...] (k x k; B: k0 x n CSR without
+        duplicate entries, ``dense``: full vectors), i.e. [B; dense^T] K^-1 [B^T, dense] -- S, the
+        loads' data B K^-1 f, and f^T K^-1 f --, and Y's first column (for :meth:`backward_row`).
+        Y is formed row-major, the columns ordered by their first non-zero row in P's order and
+        substituted from there on, native.ENV_ROW_COLS at a time (one contiguous piece of each row per
+        entry of L: vector operations); G by one symmetric product."""
         n, k0 = self.n, B.shape[0]
         k = k0 + len(dense)
         rows = np.repeat(np.arange(k0), np.diff(B.indptr))
@@ -248,19 +250,22 @@ class EnvelopeCholesky:
         start = np.full(k, n, dtype=np.int64)
         np.minimum.at(start, rows, pos)
         start[k0:] = 0
-        order = np.argsort(start, kind="stable")  # columns with close starts substituted together
-        X = np.zeros((n, k), order="F")
-        X[pos, rows] = B.data
+        order = np.argsort(start, kind="stable")
+        rank = np.empty(k, dtype=np.int64)
+        rank[order] = np.arange(k)
+        width = -(-k // native.ENV_ROW_COLS) * native.ENV_ROW_COLS
+        Y = np.zeros((n, width))
+        Y[pos, rank[rows]] = B.data
         for j, f in enumerate(dense):
-            X[:, k0 + j] = np.asarray(f, dtype=np.float64)[self.perm]
+            Y[:, rank[k0 + j]] = np.asarray(f, dtype=np.float64)[self.perm]
         start = np.ascontiguousarray(start[order])
-        self._lib.cfc_env_forward(*self._args, k, native.address(X), max(n, 1), native.address(start),
-                                  native.address(order))
-        X /= self._sqrt_d[:, None]
-        return X.T
+        self._lib.cfc_env_forward_rowmajor(*self._args, k, native.address(Y), width, native.address(start))
+        Y /= self._sqrt_d[:, None]
+        G = Y.T @ Y  # (symmetric: BLAS' syrk)
+        return G[np.ix_(rank, rank)], Y[:, rank[0]].copy()
 
     def backward_row(self, x: np.ndarray) -> np.ndarray:
-        """K^-1 b from x = D^-1/2 L^-1 P b (a row of :meth:`forward_rows`)."""
+        """K^-1 b from x = D^-1/2 L^-1 P b (a column of :meth:`forward_gram`'s Y)."""
         y = np.asfortranarray((x * self._sqrt_d).reshape(self.n, 1))
         self._lib.cfc_env_backward(*self._args, 1, native.address(y), max(self.n, 1))
         out = np.empty(self.n)

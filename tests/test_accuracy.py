@@ -221,12 +221,17 @@ def test_extreme_stiffness_contrast_points_are_shifted_within_rounding(monkeypat
     from cfcontact.report import worst_residual
 
     system = two_blocks(nx=12, ny=4, E={"body1": 2.1e11 / ratio, "body2": 2.1e11}, friction=0.6)
-    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
-    assert path.status == "completed" and len(path.transitions) >= 15
-    assert worst_residual(system, path) < 1e-10
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")  # (K's envelope Cholesky)
+    with_petsc = cfcontact.trace_path(system, 0.0, 1.0, method="exact",
+                                      solver=CondensedSolver(system, SolverOptions(solver_type="petsc")))
+    for p in (path, with_petsc):
+        assert p.status == "completed" and len(p.transitions) >= 15
+        assert worst_residual(system, p) < 1e-10
     with monkeypatch.context() as mp:  # the shift capped at CONSISTENT_MAX_RTOL alone
+        # (how far the multipliers' rounding reaches depends on the factorization of K: with
+        # the envelope factor the 3e7 case's points are within 4e-11 even so)
         mp.setattr(condensed, "CONSISTENT_LAM_ULPS", 0.0)
-        assert worst_residual(system, path) > 1e-6
+        assert worst_residual(system, with_petsc) > 1e-6
     if ratio < 1e8:
         seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
         assert [(t.node, t.set) for t in seed.transitions] == [(t.node, t.set) for t in path.transitions]

@@ -450,7 +450,7 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
     """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
     one and of several columns (a group of four and single ones), and the forward substitutions
     of sparse rows -- some empty, some starting late in RCM order -- with dense columns beside:
-    X X^T = B A^-1 B^T, X_B X_f^T = B A^-1 f, and the backward substitution of a row."""
+    their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward substitution of a column."""
     A = _spd(n, seed)
     E = linalg.EnvelopeCholesky.factor(A)
     assert E is not None and E.entries >= n
@@ -469,17 +469,21 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
         B[3, :] = 0.0  # an empty row: its column of X stays zero
     B = sp.csr_matrix(B)
     f = rng.standard_normal((2, n))
-    X = E.forward_rows(B, list(f))
-    assert X.shape == (k + 2, n)
+    G, y0 = E.forward_gram(B, list(f))
+    assert G.shape == (k + 2, k + 2) and np.array_equal(G, G.T)
     Bd = B.toarray()
     Y = np.linalg.solve(Ad, np.column_stack([Bd.T, f.T]))
-    S_ref, W_ref = Bd @ Y[:, :k], Bd @ Y[:, k:]
-    S, W = X[:k] @ X[:k].T, X[:k] @ X[k:].T
-    assert np.abs(S - S_ref).max() <= 1e-9 * np.abs(S_ref).max()
-    assert np.abs(W - W_ref).max() <= 1e-9 * np.abs(W_ref).max()
-    assert not X[3].any()
-    z = E.backward_row(X[0])
+    ref = np.vstack([Bd, f]) @ Y
+    assert np.abs(G - ref).max() <= 1e-9 * np.abs(ref).max()
+    assert not G[3].any()
+    z = E.backward_row(y0)
     assert np.abs(z - Y[:, 0]).max() <= 1e-9 * np.abs(Y[:, 0]).max()
+    # more columns than one group of the kernel (native.ENV_ROW_COLS), some starting late
+    B2 = sp.random(2 * native.ENV_ROW_COLS + 3, n, density=min(1.0, 2.0 / n), random_state=seed + 2, format="csr")
+    G2, _ = E.forward_gram(B2)
+    B2d = B2.toarray()
+    ref2 = B2d @ np.linalg.solve(Ad, B2d.T)
+    assert np.abs(G2 - ref2).max() <= 1e-9 * max(np.abs(ref2).max(), 1e-300)
 
 
 def test_envelope_cholesky_refuses_what_is_not_positive_definite():
