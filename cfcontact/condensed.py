@@ -13,10 +13,11 @@ DirNeu(Z, f) (docs/theory.md (9)) is then the dense system M(Z) lam = r(Z, w) wi
     normal row     : A_nu: (S lam)_i = w_i            I_nu: lam_n,i = 0
     tangential row : A_t : (S lam)_{m+i} = w_{m+i}    I_t : lam_t,i - F (1_{I_t+} - 1_{I_t-}) lam_n,i = 0
 
-followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (PETSc KSP:
-on one rank and for n <= NATIVE_MAX_DOFS or a small RCM envelope (NATIVE_ENVELOPE_PER_DOF)
-PETSc's own Cholesky, S = X X^T from the forward substitutions X of B's rows when they fit;
-otherwise MUMPS when available, which works under MPI), or forms
+followed by u = K^-1 (f - B^T lam).  :class:`CondensedSolver` factors K once (on one rank and
+for n <= NATIVE_MAX_DOFS or a small RCM envelope (NATIVE_ENVELOPE_PER_DOF) a Cholesky factor in
+RCM order -- cfcontact.native's envelope kernels (:class:`cfcontact.linalg.EnvelopeCholesky`,
+see ENVELOPE) or PETSc's own --, S = X X^T from the forward substitutions X of B's rows when
+they fit; otherwise a PETSc KSP with MUMPS when available, which works under MPI), or forms
 K^-1 B^T with multi-right-hand-side solves
 (``MatMatSolve``: on one rank with MUMPS B^T as one sparse right-hand side, else dense blocks
 of columns) only to get S, or takes S from MUMPS' Schur complement; it caches w for the loads seen
@@ -332,10 +333,13 @@ class CondensedSolver:
     ----------
     system : ContactSystem
     options : SolverOptions (prefix: the KSP of K uses ``<prefix>K_``; solver_type; cache =
-        how many dense LU factorizations of M(Z) to keep, at least 64).  solver_type "petsc":
-        PETSc's own Cholesky of K (RCM order) with S from forward substitutions, the default on
-        one rank for n <= NATIVE_MAX_DOFS; "mumps" (the default otherwise) or another package:
-        its LU of K.  ``-<prefix>K_pc_type`` etc. still apply (``setFromOptions``).
+        how many dense LU factorizations of M(Z) to keep, at least 64).  By default, on one rank
+        for n <= NATIVE_MAX_DOFS or a small envelope, K's Cholesky factor in RCM order by
+        cfcontact.native's envelope kernels (``k_factorization`` "cholesky/envelope"; PETSc's
+        own without a C compiler) with S from forward substitutions; solver_type "petsc":
+        PETSc's own Cholesky there; "mumps" (the default otherwise) or another package: its LU
+        of K.  ``-<prefix>K_pc_type`` etc. still apply (``setFromOptions``; given, they make
+        PETSc factor K).
     schur : form S from the Schur complement of K on the contact DOFs, which MUMPS computes
         during the factorization (about the cost of the factorization instead of 2m solves).
         Default: when possible (one rank, MUMPS) and worth it (K^-1 B^T would have at least

@@ -166,6 +166,10 @@ def rcm_envelope(A: sp.spmatrix) -> int:
     return int((rows - first + 1).sum())
 
 
+#: EnvelopeCholesky.solve works on blocks of at most this many entries (n x columns) at a time
+SOLVE_BLOCK_ENTRIES = 4_000_000
+
+
 class EnvelopeCholesky:
     """K = P^T L D L^T P for a sparse symmetric positive definite K (one rank): P the reverse
     Cuthill-McKee order of K's graph, L unit lower triangular and D diagonal, held in envelope
@@ -226,15 +230,32 @@ class EnvelopeCholesky:
         return int(self._ptr[-1])
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """K^-1 b (b: n, or n x k)."""
+        """K^-1 b (b: n, or n x k; several columns row-major, native.ENV_ROW_COLS at a time)."""
         b = np.asarray(b, dtype=np.float64)
+        if b.ndim == 2 and b.shape[1] > 1:
+            return self._solve_rows(b)
         X = np.asfortranarray(b[self.perm].reshape(self.n, -1))
         k = X.shape[1]
-        self._lib.cfc_env_forward(*self._args, k, native.address(X), max(self.n, 1), None, None)
+        self._lib.cfc_env_forward(*self._args, k, native.address(X), max(self.n, 1))
         self._lib.cfc_env_backward(*self._args, k, native.address(X), max(self.n, 1))
         out = np.empty_like(X)
         out[self.perm] = X
         return out.reshape(b.shape)
+
+    def _solve_rows(self, b: np.ndarray) -> np.ndarray:
+        """K^-1 b for the columns of b, in blocks of SOLVE_BLOCK_COLUMNS held row-major."""
+        n, k = b.shape
+        out = np.empty((n, k), order="F")
+        block = native.ENV_ROW_COLS * max(1, SOLVE_BLOCK_ENTRIES // max(n * native.ENV_ROW_COLS, 1))
+        for c0 in range(0, k, block):
+            kc = min(block, k - c0)
+            width = -(-kc // native.ENV_ROW_COLS) * native.ENV_ROW_COLS
+            Y = np.zeros((n, width))
+            Y[:, :kc] = b[self.perm, c0:c0 + kc]
+            self._lib.cfc_env_forward_rowmajor(*self._args, kc, native.address(Y), width, None)
+            self._lib.cfc_env_backward_rowmajor(*self._args, kc, native.address(Y), width)
+            out[self.perm, c0:c0 + kc] = Y[:, :kc]
+        return out
 
     def forward_gram(self, B: sp.csr_matrix, dense=()) -> tuple:
         """(G, y0): G = Y^T Y for Y = D^-1/2 L^-1 P [B^T, dense...] (k x k; B: k0 x n CSR without

@@ -461,6 +461,13 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
     tol = 1e-9 * np.abs(x_ref).max()
     assert np.abs(E.solve(b) - x_ref).max() <= tol
     assert np.abs(E.solve(b[:, 3]) - x_ref[:, 3]).max() <= tol
+    # more columns than one group of the row-major kernels (native.ENV_ROW_COLS), in several blocks
+    wide = rng.standard_normal((n, 2 * native.ENV_ROW_COLS + 5))
+    ref = np.linalg.solve(Ad, wide)
+    for entries in (linalg.SOLVE_BLOCK_ENTRIES, 1):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(linalg, "SOLVE_BLOCK_ENTRIES", entries)
+            assert np.abs(E.solve(wide) - ref).max() <= 1e-9 * np.abs(ref).max()
     k = 9
     B = sp.random(k, n, density=min(1.0, 3.0 / n), random_state=seed + 1, format="lil")
     B[0, :] = 0.0
