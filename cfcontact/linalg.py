@@ -168,6 +168,10 @@ def rcm_envelope(A: sp.spmatrix) -> int:
 
 #: EnvelopeCholesky.solve works on blocks of at most this many entries (n x columns) at a time
 SOLVE_BLOCK_ENTRIES = 4_000_000
+#: ... and row-major (native.ENV_ROW_COLS columns as vectors) from this many columns on; fewer one
+#: by one (a strip, n = 24 000: 2 columns one by one 1.1 ms, row-major -- padded to 32 -- 3.1 ms;
+#: 8 columns 3.5 and 2.5 ms; 32 columns 14.2 and 5.2 ms)
+SOLVE_ROWS_MIN_COLUMNS = 6
 
 
 class EnvelopeCholesky:
@@ -230,9 +234,10 @@ class EnvelopeCholesky:
         return int(self._ptr[-1])
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """K^-1 b (b: n, or n x k; several columns row-major, native.ENV_ROW_COLS at a time)."""
+        """K^-1 b (b: n, or n x k; at least SOLVE_ROWS_MIN_COLUMNS columns row-major,
+        native.ENV_ROW_COLS at a time)."""
         b = np.asarray(b, dtype=np.float64)
-        if b.ndim == 2 and b.shape[1] > 1:
+        if b.ndim == 2 and b.shape[1] >= SOLVE_ROWS_MIN_COLUMNS:
             return self._solve_rows(b)
         X = np.asfortranarray(b[self.perm].reshape(self.n, -1))
         k = X.shape[1]

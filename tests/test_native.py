@@ -461,6 +461,9 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
     tol = 1e-9 * np.abs(x_ref).max()
     assert np.abs(E.solve(b) - x_ref).max() <= tol
     assert np.abs(E.solve(b[:, 3]) - x_ref[:, 3]).max() <= tol
+    with pytest.MonkeyPatch.context() as mp:  # the seven columns row-major too
+        mp.setattr(linalg, "SOLVE_ROWS_MIN_COLUMNS", 2)
+        assert np.abs(E.solve(b) - x_ref).max() <= tol
     # more columns than one group of the row-major kernels (native.ENV_ROW_COLS), in several blocks
     wide = rng.standard_normal((n, 2 * native.ENV_ROW_COLS + 5))
     ref = np.linalg.solve(Ad, wide)
