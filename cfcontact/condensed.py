@@ -401,6 +401,7 @@ class CondensedSolver:
         self._schur_dofs = None
         if self._envelope is not None:
             self.stats.factorizations += 1
+            system.record_inertia((0, 0, self.n))  # (every pivot positive: K is positive definite)
             #: how K was factored: "<pc type>/<package>", e.g. "cholesky/petsc" or "lu/mumps", or
             #: "cholesky/envelope" (linalg.EnvelopeCholesky)
             self.k_factorization = "cholesky/envelope"

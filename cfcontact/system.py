@@ -274,6 +274,15 @@ class ContactSystem:
             self._cache["inertia"] = linalg.inertia(self.K)
         return self._cache["inertia"]
 
+    def record_inertia(self, inertia: tuple):
+        """Keep K's inertia as a factorization made elsewhere found it (a backend's Cholesky
+        factorization of K with every pivot positive: (0, 0, n)), so that :meth:`inertia` needs
+        none of its own.  Must be the same on every rank."""
+        neg, zero, pos = (int(k) for k in inertia)
+        if min(neg, zero, pos) < 0 or neg + zero + pos != self.n:
+            raise InputError(f"an inertia of K counts n = {self.n} eigenvalues, not {inertia!r}")
+        self._cache.setdefault("inertia", (neg, zero, pos))
+
     def _diagonal_signs(self):
         """(non-positive diagonal entries of K, the first of them) over all ranks, cached."""
         if "diagonal_signs" not in self._cache:

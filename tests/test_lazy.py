@@ -218,6 +218,18 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     assert CondensedSolver(system).k_factorization == "lu/mumps"
 
 
+def test_the_envelope_factorization_records_that_K_is_positive_definite(monkeypatch):
+    """Every pivot of the envelope Cholesky factor positive: the system keeps the inertia (0, 0, n)
+    and checks K before tracing without a factorization of its own."""
+    system = random_system(4, 3, friction=0.8, extra_dofs=6)
+    monkeypatch.setattr(linalg, "inertia", lambda A: pytest.fail("K factored again for its inertia"))
+    assert CondensedSolver(system).k_factorization == "cholesky/envelope"
+    assert system.inertia() == (0, 0, system.n)
+    system.check_positive_definite()
+    with pytest.raises(cfcontact.InputError, match="counts n = "):
+        system.record_inertia((0, 0, system.n + 1))
+
+
 def test_rcm_envelope_is_the_size_of_petscs_cholesky_factor():
     """The envelope that chooses K's factorization: 2n - 1 for a tridiagonal matrix (any
     numbering of a chain), and within a few per cent of the entries of PETSc's own Cholesky factor
