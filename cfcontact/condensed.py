@@ -350,7 +350,7 @@ class CondensedSolver:
         ~1e-9 instead of ~1e-11 on the demo mesh).
     store_columns : when S is formed by solves: all of K^-1 B^T at once (default: when it has
         at most STORE_LIMIT entries per rank), else in column blocks (False also skips the
-        forward substitutions of PETSc's Cholesky, which hold an array of that size).  It is never
+        forward substitutions of K's Cholesky factor, which hold an array of that size).  It is never
         kept: u is always K^-1 (f - B^T lam) by one sparse solve, since K^-1 f - (K^-1 B^T) lam loses accuracy
         (contact forces nearly cancel the load; relative residual 4e-8 measured at n = 1.2e5).
     """
@@ -445,7 +445,7 @@ class CondensedSolver:
             if S is not None and not schur and not self.refine_steps and not self._schur_accurate(S):
                 S = None  # (a slender or stiff-contrast model: the solves are accurate, the Schur complement not)
         #: how S was formed: "schur" (MUMPS Schur complement on the contact DOFs), "forward"
-        #: (forward substitutions with PETSc's Cholesky factor) or "solves" (2m columns)
+        #: (forward substitutions with K's Cholesky factor) or "solves" (2m columns)
         self.condensation = "schur" if S is not None else "solves"
         if S is None:
             if (self.k_factorization in ("cholesky/petsc", "cholesky/envelope") and store_columns is not False

@@ -248,7 +248,8 @@ class EnvelopeCholesky:
         return out.reshape(b.shape)
 
     def _solve_rows(self, b: np.ndarray) -> np.ndarray:
-        """K^-1 b for the columns of b, in blocks of SOLVE_BLOCK_COLUMNS held row-major."""
+        """K^-1 b for the columns of b, row-major in blocks of at most about SOLVE_BLOCK_ENTRIES
+        entries (a multiple of native.ENV_ROW_COLS columns)."""
         n, k = b.shape
         out = np.empty((n, k), order="F")
         block = native.ENV_ROW_COLS * max(1, SOLVE_BLOCK_ENTRIES // max(n * native.ENV_ROW_COLS, 1))

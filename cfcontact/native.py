@@ -1296,8 +1296,9 @@ void cfc_env_backward(int64_t n, const int64_t *first, const int64_t *ptr, const
 }
 """
 
-#: columns that ``cfc_env_forward_rowmajor`` substitutes together (its x's row width is a multiple
-#: of it): four independent chains of AVX-512 additions (eight columns, one chain: 2.3x slower)
+#: columns that ``cfc_env_forward_rowmajor`` and ``cfc_env_backward_rowmajor`` substitute together
+#: (their x's row width is a multiple of it): several independent chains of vector additions (on
+#: this project's AVX-512 machine eight columns, one chain, were 2.3x slower)
 ENV_ROW_COLS = 32
 _SOURCE = f"#define ENV_ROW_COLS {ENV_ROW_COLS}\n" + _SOURCE
 
@@ -1434,11 +1435,11 @@ def _load():
     lib.cfc_env_forward.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
     lib.cfc_env_forward.restype = None
     lib.cfc_env_backward.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
-    lib.cfc_env_backward_rowmajor.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
-    lib.cfc_env_backward_rowmajor.restype = None
+    lib.cfc_env_backward.restype = None
     lib.cfc_env_forward_rowmajor.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64, ptr]
     lib.cfc_env_forward_rowmajor.restype = None
-    lib.cfc_env_backward.restype = None
+    lib.cfc_env_backward_rowmajor.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
+    lib.cfc_env_backward_rowmajor.restype = None
     return lib
 
 
