@@ -218,6 +218,27 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     assert CondensedSolver(system).k_factorization == "lu/mumps"
 
 
+@pytest.mark.parametrize("friction", [0.3, 30.0])
+def test_exact_paths_with_the_envelope_and_with_petscs_cholesky_agree(friction):
+    """The exact path of two blocks (FEM, n = 240, 14 and 22 transitions) with K factored by the
+    envelope kernels and by PETSc's Cholesky: the same set changes, transition alpha to rounding,
+    both verified."""
+    from cfcontact.report import worst_residual
+
+    system = cfcontact.two_blocks(nx=12, ny=4, friction=friction, tractions1={"top1": (3e7, -1e8)},
+                                  tractions2={"top1": (-1e8, -2e7)})
+    paths = []
+    for opts in (None, SolverOptions(solver_type="petsc")):
+        solver = CondensedSolver(system, opts)
+        paths.append(cfcontact.trace_path(system, 0.0, 1.0, method="exact", solver=solver))
+        assert paths[-1].status == "completed" and worst_residual(system, paths[-1], solver) < 1e-10
+    a, b = paths
+    assert len(a.transitions) >= 5
+    assert [(t.node, t.set, t.kind) for t in a.transitions] == [(t.node, t.set, t.kind) for t in b.transitions]
+    np.testing.assert_allclose([t.alpha for t in a.transitions], [t.alpha for t in b.transitions], rtol=1e-9,
+                               atol=1e-12)
+
+
 def test_the_envelope_factorization_records_that_K_is_positive_definite(monkeypatch):
     """Every pivot of the envelope Cholesky factor positive: the system keeps the inertia (0, 0, n)
     and checks K before tracing without a factorization of its own."""

@@ -448,9 +448,10 @@ def _spd(n, seed, density=0.02):
 @pytest.mark.parametrize("n,seed", [(1, 0), (7, 1), (120, 2), (400, 3)])
 def test_envelope_cholesky_against_dense_solves(n, seed):
     """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
-    one and of several columns (a group of four and single ones), and the forward substitutions
-    of sparse rows -- some empty, some starting late in RCM order -- with dense columns beside:
-    their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward substitution of a column."""
+    one and of several columns (one by one, and row-major in one and in several blocks), and the
+    forward substitutions of sparse rows -- some empty, some starting late in RCM order -- with
+    dense columns beside: their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward
+    substitution of a column."""
     A = _spd(n, seed)
     E = linalg.EnvelopeCholesky.factor(A)
     assert E is not None and E.entries >= n
@@ -476,7 +477,7 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
     B[0, :] = 0.0
     B[0, n - 1] = 2.0  # a row whose only entry may come last in RCM order
     if k > 3:
-        B[3, :] = 0.0  # an empty row: its column of X stays zero
+        B[3, :] = 0.0  # an empty row: its column of Y stays zero
     B = sp.csr_matrix(B)
     f = rng.standard_normal((2, n))
     G, y0 = E.forward_gram(B, list(f))
@@ -498,7 +499,7 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
 
 def test_envelope_cholesky_refuses_what_is_not_positive_definite():
     """A singular and an indefinite matrix: SingularSystemError naming the DOF where the
-    factorization broke down; no compiled kernels: None (the caller uses PETSc)."""
+    factorization broke down; a matrix that is not square: ValueError."""
     from cfcontact.errors import SingularSystemError
 
     A = _spd(30, 4).tolil()
@@ -514,6 +515,7 @@ def test_envelope_cholesky_refuses_what_is_not_positive_definite():
 
 
 def test_envelope_cholesky_needs_the_compiled_kernels(monkeypatch):
+    """Without them: None (the condensed backend lets PETSc factor K then)."""
     monkeypatch.setattr(native, "_tried", True)
     monkeypatch.setattr(native, "_lib", None)
     assert linalg.EnvelopeCholesky.factor(_spd(10, 5)) is None
