@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 import cfcontact
-from cfcontact import condensed, linalg
+from cfcontact import condensed, linalg, native
 from cfcontact.condensed import CondensedSolver
 from cfcontact.exact import canonical_codes
 from cfcontact.lumped import one_node, random_system
@@ -86,6 +86,12 @@ def test_exact_callback_sees_displacements_with_lazy_branches(systems):
 MUMPS = SolverOptions(solver_type="mumps")
 
 
+def _envelope_or_petsc() -> str:
+    """The default factorization of a small K on one rank: the envelope kernels, or PETSc's
+    Cholesky without a C compiler (CFCONTACT_NATIVE=0)."""
+    return "cholesky/envelope" if native.library() is not None else "cholesky/petsc"
+
+
 @pytest.mark.parametrize("fem", [False, True])
 def test_schur_complement_and_forward_substitutions_match_solves(fem):
     system = (cfcontact.two_blocks(nx=9, ny=3, friction=0.5, tractions1={"top1": (1e7, -1e8)},
@@ -96,7 +102,7 @@ def test_schur_complement_and_forward_substitutions_match_solves(fem):
     d = CondensedSolver(system, options=SolverOptions(solver_type="petsc"))  # the same with PETSc's Cholesky
     assert a.condensation == "schur" and b.condensation == "solves" and c.condensation == d.condensation == "forward"
     assert a.k_factorization == b.k_factorization == "lu/mumps"
-    assert c.k_factorization == "cholesky/envelope" and d.k_factorization == "cholesky/petsc"
+    assert c.k_factorization == _envelope_or_petsc() and d.k_factorization == "cholesky/petsc"
     # the loads ride along (w1, w2 = B K^-1 f1,2 cached): by solves 2m + 4 columns in one solve call
     # (the exact method's two perturbation loads too), by forward substitutions 2m + 2 of them and
     # one backward substitution (the check); each solver first probes its solves' accuracy with one
@@ -193,10 +199,8 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     """Small or thin K on one rank: the envelope Cholesky (compiled), or PETSc's when solver_type
     says so, when the user set options for K's solver, or without the compiled kernels; wider
     bands: MUMPS."""
-    from cfcontact import native
-
     system = random_system(4, 3, friction=0.8, extra_dofs=6)
-    assert CondensedSolver(system).k_factorization == "cholesky/envelope"
+    assert CondensedSolver(system).k_factorization == _envelope_or_petsc()
     petsc = CondensedSolver(system, options=SolverOptions(solver_type="petsc"))
     assert petsc.k_factorization == "cholesky/petsc" and petsc.condensation == "forward"
     assert CondensedSolver(system, options=MUMPS).k_factorization == "lu/mumps"
@@ -213,7 +217,7 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: K's envelope decides
     per_dof = linalg.rcm_envelope(linalg.local_csr(system.K)) / system.n
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", per_dof)
-    assert CondensedSolver(system).k_factorization == "cholesky/envelope"
+    assert CondensedSolver(system).k_factorization == _envelope_or_petsc()
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", 0.99 * per_dof)  # a wider band: MUMPS
     assert CondensedSolver(system).k_factorization == "lu/mumps"
 
@@ -242,6 +246,8 @@ def test_exact_paths_with_the_envelope_and_with_petscs_cholesky_agree(friction):
 def test_the_envelope_factorization_records_that_K_is_positive_definite(monkeypatch):
     """Every pivot of the envelope Cholesky factor positive: the system keeps the inertia (0, 0, n)
     and checks K before tracing without a factorization of its own."""
+    if native.library() is None:
+        pytest.skip("no compiled kernels (CFCONTACT_NATIVE=0 or no C compiler): PETSc factors K")
     system = random_system(4, 3, friction=0.8, extra_dofs=6)
     monkeypatch.setattr(linalg, "inertia", lambda A: pytest.fail("K factored again for its inertia"))
     assert CondensedSolver(system).k_factorization == "cholesky/envelope"
