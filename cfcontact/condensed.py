@@ -87,7 +87,8 @@ NATIVE_ENVELOPE_PER_DOF = 32
 #: (:class:`cfcontact.linalg.EnvelopeCholesky`) when they are there, and S, w1, w2 by forward
 #: substitutions that start at each column's first non-zero row.  PETSc's symbolic phase and
 #: per-call set-up dominate at this size: on the two steel blocks (n = 1320, m = 30) K's
-#: factorization took 0.24 ms instead of 1.5 ms and S 0.7 ms instead of 1.8 ms.  PETSc factors K
+#: factorization (its RCM order included) took 0.3-0.5 ms instead of 1.5-1.7 ms and S, w1, w2
+#: 0.5-0.7 ms instead of 1.8 ms.  PETSc factors K
 #: when solver_type is given or the user set options for K's solver (``-<prefix>K_...``).
 ENVELOPE = True
 #: S from MUMPS' Schur complement is kept only when it agrees with one solve with K to this

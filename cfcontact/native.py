@@ -28,9 +28,9 @@
 * the Cholesky factorization of a sparse K in envelope (profile) storage and its substitutions
   (``cfc_env_*``; :class:`cfcontact.linalg.EnvelopeCholesky`): for the small and the thin
   bodies whose RCM envelope is small PETSc's symbolic phase and per-call set-up were most of
-  the factorization (two steel blocks, n = 1320: 1.5 ms against 0.3 ms), and its forward
+  the factorization (two steel blocks, n = 1320: 1.5-1.7 ms against 0.3-0.5 ms), and its forward
   substitutions cannot start at a right-hand side's first non-zero row nor work on 32 columns
-  as vectors (S of those blocks: 1.8 ms against 0.5 ms).
+  as vectors (S of those blocks: 1.8 ms against 0.5-0.7 ms).
 * the rank-one/rank-two update of a degenerate point's tableau and its indicators
   (``cfc_tableau_change``, ``cfc_tableau_indicators``; :class:`cfcontact.condensed.PointTableau`):
   some twenty NumPy and BLAS calls per pivot before.
