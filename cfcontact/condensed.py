@@ -382,6 +382,7 @@ class CondensedSolver:
         self._updater = None  # factorization updates of the exact method's branches (_Updater)
         self._kernel = None  # the compiled branch kernel (_branch_kernel), made at the first branch
         self._imposed_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()  # imposed_rows by state
+        self._rcm = None  # K's RCM order where _native_fits computed it
         self.solver_type = self.options.solver_type or (
             "petsc" if self.size == 1 and not schur and self._native_fits() else _default_solver_type(self.size))
         self._lu: "OrderedDict[bytes, tuple]" = OrderedDict()
@@ -396,7 +397,8 @@ class CondensedSolver:
         self._envelope = None
         if (ENVELOPE and self.options.solver_type is None and self.solver_type == "petsc" and self.size == 1
                 and not self._k_options_given()):
-            self._envelope = linalg.EnvelopeCholesky.factor(self.K_local)  # (None without the compiled kernels)
+            # (None without the compiled kernels; the RCM order _native_fits computed, if it did)
+            self._envelope = linalg.EnvelopeCholesky.factor(self.K_local, self._rcm)
         self.ksp = None
         self._schur_is = None
         self._schur_dofs = None
@@ -516,7 +518,8 @@ class CondensedSolver:
         NATIVE_MAX_DOFS, or an RCM envelope of at most NATIVE_ENVELOPE_PER_DOF per DOF?"""
         if self.n <= NATIVE_MAX_DOFS:
             return True
-        return linalg.rcm_envelope(self.K_local) <= NATIVE_ENVELOPE_PER_DOF * self.n  # (K_local: kept)
+        self._rcm = linalg.rcm_order(self.K_local)  # (K_local: kept; the envelope factor reuses the order)
+        return linalg.rcm_envelope(self.K_local, self._rcm) <= NATIVE_ENVELOPE_PER_DOF * self.n
 
     def _schur_accurate(self, S) -> bool:
         """Does S from the Schur complement agree with B K^-1 B^T applied by one solve with K, on a

@@ -8,6 +8,8 @@ and :func:`gather_mat` return whole objects on every rank.
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
@@ -148,16 +150,22 @@ def local_csr(A) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(av).copy(), np.asarray(aj).copy(), np.asarray(ai).copy()), shape=(r1 - r0, n))
 
 
-def rcm_envelope(A: sp.spmatrix) -> int:
-    """The entries of the lower triangle's envelope of A (symmetric, n x n) in reverse
-    Cuthill-McKee order: sum over rows of (row - first column + 1), what a profile (skyline)
-    Cholesky factor of A in that order holds.  O(nnz)."""
+def rcm_order(A: sp.spmatrix) -> np.ndarray:
+    """The reverse Cuthill-McKee order of the graph of A (symmetric, n x n): int64, new -> old."""
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+    return np.asarray(reverse_cuthill_mckee(sp.csr_matrix(A), symmetric_mode=True), dtype=np.int64)
+
+
+def rcm_envelope(A: sp.spmatrix, perm: Optional[np.ndarray] = None) -> int:
+    """The entries of the lower triangle's envelope of A (symmetric, n x n) in reverse
+    Cuthill-McKee order (``perm``: that order, :func:`rcm_order`, when the caller has it):
+    sum over rows of (row - first column + 1), what a profile (skyline) Cholesky factor of A in
+    that order holds.  O(nnz)."""
     A = sp.csr_matrix(A)
     if A.shape[0] == 0:
         return 0
-    p = reverse_cuthill_mckee(A, symmetric_mode=True)
+    p = rcm_order(A) if perm is None else perm
     P = A[p][:, p].tocsr()
     first = np.minimum.reduceat(P.indices, P.indptr[:-1]) if P.nnz else np.arange(P.shape[0])
     rows = np.arange(P.shape[0])
@@ -201,17 +209,18 @@ class EnvelopeCholesky:
         self._args = (self.n, native.address(first), native.address(ptr), native.address(v))
 
     @classmethod
-    def factor(cls, A: sp.spmatrix) -> "EnvelopeCholesky | None":
+    def factor(cls, A: sp.spmatrix, perm: Optional[np.ndarray] = None) -> "EnvelopeCholesky | None":
+        """The factor of A in the order ``perm`` (new -> old; default: :func:`rcm_order` of A)."""
         lib = native.library()
         if lib is None:
             return None
-        from scipy.sparse.csgraph import reverse_cuthill_mckee
-
         A = sp.csr_matrix(A)
         n = A.shape[0]
         if A.shape != (n, n):
             raise ValueError(f"EnvelopeCholesky needs a square matrix, not {A.shape[0]} x {A.shape[1]}")
-        perm = np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
+        perm = rcm_order(A) if perm is None else np.asarray(perm, dtype=np.int64)
+        if perm.shape != (n,):
+            raise ValueError(f"EnvelopeCholesky: the order has {perm.size} entries, K has {n} rows")
         iperm = np.empty(n, dtype=np.int64)
         iperm[perm] = np.arange(n)
         indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)

@@ -48,3 +48,16 @@ def pytest_collection_modifyitems(session, config, items):
                 if "run_mpi" in getattr(item, "fixturenames", ()) and item.get_closest_marker("mpi") is None]
     if unmarked:
         raise pytest.UsageError(f"tests using run_mpi without @pytest.mark.mpi: {unmarked}")
+
+
+@pytest.fixture
+def kernels():
+    """cfcontact.native's compiled library; a test that compares the compiled kernels with their
+    NumPy counterparts is skipped without them (CFCONTACT_NATIVE=0 or no C compiler), where
+    cfcontact runs the NumPy code alone."""
+    from cfcontact import native
+
+    lib = native.library()
+    if lib is None:
+        pytest.skip("no compiled kernels (CFCONTACT_NATIVE=0 or no C compiler)")
+    return lib

@@ -217,7 +217,14 @@ def test_solver_type_selects_the_factorization_of_K(monkeypatch):
     monkeypatch.setattr(condensed, "NATIVE_MAX_DOFS", system.n - 1)  # above the limit: K's envelope decides
     per_dof = linalg.rcm_envelope(linalg.local_csr(system.K)) / system.n
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", per_dof)
-    assert CondensedSolver(system).k_factorization == _envelope_or_petsc()
+    calls = []
+    rcm_order = linalg.rcm_order
+    monkeypatch.setattr(linalg, "rcm_order", lambda A: calls.append(1) or rcm_order(A))
+    thin = CondensedSolver(system)
+    assert thin.k_factorization == _envelope_or_petsc()
+    assert len(calls) == 1  # the order that chose the factorization is the envelope factor's
+    if thin._envelope is not None:
+        assert np.array_equal(thin._envelope.perm, rcm_order(linalg.local_csr(system.K)))
     monkeypatch.setattr(condensed, "NATIVE_ENVELOPE_PER_DOF", 0.99 * per_dof)  # a wider band: MUMPS
     assert CondensedSolver(system).k_factorization == "lu/mumps"
 

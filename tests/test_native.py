@@ -38,7 +38,7 @@ def cancelling(n=300, k=7, seed=5):
     return A, b, x
 
 
-def test_compiled_kernel_gives_the_numpy_bits(fresh_native, monkeypatch):
+def test_compiled_kernel_gives_the_numpy_bits(kernels, fresh_native, monkeypatch):
     """k = 7 columns: a block of 4 and three single columns in the kernel; C- and Fortran-ordered
     input; the same bits as NumPy's slots (same operations, same order)."""
     A, b, x = cancelling()
@@ -56,7 +56,7 @@ def test_compiled_kernel_gives_the_numpy_bits(fresh_native, monkeypatch):
     assert compiled(b[:, :0], x[:, :0]).shape == (A.shape[0], 0)
 
 
-def test_compiled_kernel_against_rational_arithmetic(fresh_native):
+def test_compiled_kernel_against_rational_arithmetic(kernels, fresh_native):
     """Rows with unsorted CSR indices (the kernel sorts a copy; the caller's matrix is left as
     it is) against Fractions."""
     rng = np.random.default_rng(8)
@@ -77,7 +77,7 @@ def test_compiled_kernel_against_rational_arithmetic(fresh_native):
     assert np.array_equal(U.indices, before)
 
 
-def test_the_cache_is_reused_and_keyed(fresh_native, monkeypatch):
+def test_the_cache_is_reused_and_keyed(kernels, fresh_native, monkeypatch):
     """A second process loads the cached object without compiling; another CPU (features) gets
     another file."""
     native.dd_residual_kernel()
@@ -95,7 +95,7 @@ def test_the_cache_is_reused_and_keyed(fresh_native, monkeypatch):
     assert len(list(fresh_native.glob("kernels-*.so"))) == 2
 
 
-def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
+def test_without_a_compiler_numpy_is_used(kernels, fresh_native, monkeypatch, caplog):
     """$CC that does not exist and no cc/gcc on PATH: None, logged, and ExactResidual still
     works (NumPy); a compiler that fails: None as well, nothing left in the cache."""
     A, b, x = cancelling(n=60, k=2)
@@ -124,7 +124,7 @@ def test_without_a_compiler_numpy_is_used(fresh_native, monkeypatch, caplog):
 
 
 @pytest.mark.parametrize("rows, cols", [(1, 1), (7, 3), (401, 13), (420, 1728), (1001, 1002)])
-def test_two_column_product(rows, cols):
+def test_two_column_product(kernels, rows, cols):
     """gemv2 (both columns in one pass over A) against exact products: row counts not multiples of
     4 (a short last block of rows), column counts not multiples of 4 (the scalar tail), entries over 10 decades; as
     accurate as BLAS' gemv.  Other layouts or column counts: None (the caller multiplies)."""
@@ -145,7 +145,7 @@ def test_two_column_product(rows, cols):
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 8, 13, 401, 1003])
-def test_two_column_transposed_lu_solve(n):
+def test_two_column_transposed_lu_solve(kernels, n):
     """getrs2t (A^-T B, both columns in one pass over getrf's factor) against LAPACK's getrs with
     trans = 1: sizes that are not multiples of the kernel's four-row blocks, a matrix that needs
     row interchanges (its largest entries below the diagonal), residuals as small as getrs'.
@@ -168,7 +168,7 @@ def test_two_column_transposed_lu_solve(n):
 
 
 @pytest.mark.parametrize("rows, cols, picked", [(5, 1, 1), (9, 7, 3), (500, 401, 6), (2000, 1003, 401)])
-def test_two_column_product_with_gathered_rows(rows, cols, picked):
+def test_two_column_product_with_gathered_rows(kernels, rows, cols, picked):
     """gemv2t (A[idx].T X without gathering A's rows, both columns in one pass) against exact
     products: row counts not multiples of the kernel's four, unsorted and repeated row numbers,
     entries over 10 decades.  Other layouts: None; row numbers out of range: IndexError."""
@@ -190,7 +190,7 @@ def test_two_column_product_with_gathered_rows(rows, cols, picked):
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 7, 8, 13, 401, 1730])
-def test_two_column_symmetric_product(n):
+def test_two_column_symmetric_product(kernels, n):
     """symv2 (A X from A's upper triangle only) against exact products: sizes that are not
     multiples of the kernel's four-row blocks (a scalar last block, rows whose segment right of
     the block starts unaligned), zero rows in X (the multipliers of open nodes), entries over 10
@@ -238,7 +238,7 @@ def _mixed_system(m=24, seed=3):
     return ContactSystem.from_arrays(K, N, T, rng.standard_normal(n), rng.standard_normal(n), F)
 
 
-def test_compiled_branch_data_equals_numpy_and_lapack(monkeypatch):
+def test_compiled_branch_data_equals_numpy_and_lapack(kernels, monkeypatch):
     """cfc_branch_small (reduced matrix, unblocked LU, solve, one refinement step, indicators in
     one call) against CondensedSolver.branch_data's NumPy/LAPACK path on 200 random states of a
     model with frictionless and tangent-free nodes: the same multipliers and indicators to
@@ -313,7 +313,7 @@ def _random_codes(system, rng):
     return canonical_codes(sets_from_codes(codes), system.friction, system.no_tangent).astype(np.int8)
 
 
-def test_compiled_line_equals_numpy(monkeypatch):
+def test_compiled_line_equals_numpy(kernels, monkeypatch):
     """A branch of the exact method formed with the compiled kernels (cfc_branch_line: the
     branch, its per-indicator scales and data floors, tolerances and constraints in one call)
     against the NumPy/LAPACK form (exact._CondensedData.make_line without the kernels), on random
@@ -356,7 +356,7 @@ def test_compiled_line_equals_numpy(monkeypatch):
     assert checked > 30
 
 
-def test_compiled_constraints_give_the_numpy_bits():
+def test_compiled_constraints_give_the_numpy_bits(kernels):
     """cfc_line_constraints (tolerances and constraints of a branch from its scales) and the same
     in the fused branch kernel against exact._Line's NumPy arithmetic on the same inputs:
     bitwise equal (the same operations in the same order)."""
@@ -446,7 +446,7 @@ def _spd(n, seed, density=0.02):
 
 
 @pytest.mark.parametrize("n,seed", [(1, 0), (7, 1), (120, 2), (400, 3)])
-def test_envelope_cholesky_against_dense_solves(n, seed):
+def test_envelope_cholesky_against_dense_solves(kernels, n, seed):
     """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
     one and of several columns (one by one, and row-major in one and in several blocks), and the
     forward substitutions of sparse rows -- some empty, some starting late in RCM order -- with
@@ -495,9 +495,15 @@ def test_envelope_cholesky_against_dense_solves(n, seed):
     B2d = B2.toarray()
     ref2 = B2d @ np.linalg.solve(Ad, B2d.T)
     assert np.abs(G2 - ref2).max() <= 1e-9 * max(np.abs(ref2).max(), 1e-300)
+    # an order given by the caller: its own RCM order gives the same factor, any order the solves
+    same = linalg.EnvelopeCholesky.factor(A, linalg.rcm_order(A))
+    assert np.array_equal(same._v, E._v) and np.array_equal(same.perm, E.perm)
+    assert linalg.rcm_envelope(A, same.perm) == linalg.rcm_envelope(A) == E.entries
+    other = linalg.EnvelopeCholesky.factor(A, rng.permutation(n))
+    assert np.abs(other.solve(b) - x_ref).max() <= tol
 
 
-def test_envelope_cholesky_refuses_what_is_not_positive_definite():
+def test_envelope_cholesky_refuses_what_is_not_positive_definite(kernels):
     """A singular and an indefinite matrix: SingularSystemError naming the DOF where the
     factorization broke down; a matrix that is not square: ValueError."""
     from cfcontact.errors import SingularSystemError
@@ -512,6 +518,8 @@ def test_envelope_cholesky_refuses_what_is_not_positive_definite():
         linalg.EnvelopeCholesky.factor(A)
     with pytest.raises(ValueError, match="square"):
         linalg.EnvelopeCholesky.factor(sp.csr_matrix(np.ones((2, 3))))
+    with pytest.raises(ValueError, match="order has 2 entries, K has 3 rows"):
+        linalg.EnvelopeCholesky.factor(A, np.arange(2))
 
 
 def test_envelope_cholesky_needs_the_compiled_kernels(monkeypatch):

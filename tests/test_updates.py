@@ -133,9 +133,11 @@ def test_dense_factorization_cache_stays_within_its_byte_budget(monkeypatch):
 
 
 @pytest.mark.parametrize("updates, kernel_rows", [(True, None), (False, 0), (False, 10 ** 9)])
-def test_singular_sets_are_reported_by_the_updates_too(updates, kernel_rows, monkeypatch):
+def test_singular_sets_are_reported_by_the_updates_too(updates, kernel_rows, monkeypatch, request):
     """A node pair with identical rows in S makes some sets singular: every way says so (updates,
     fresh LAPACK factorizations, the compiled branch kernel)."""
+    if kernel_rows:
+        request.getfixturevalue("kernels")  # (skipped without them)
     if kernel_rows is not None:
         monkeypatch.setattr(condensed, "BRANCH_KERNEL_MAX_ROWS", kernel_rows)
     rng = np.random.default_rng(1)
@@ -315,7 +317,7 @@ def test_point_model_equals_fresh_solves():
     assert model.move_to(outside) is None
 
 
-def test_point_tableau_equals_fresh_solves():
+def test_point_tableau_equals_fresh_solves(kernels):
     """The tableau of a degenerate point (its nodes' indicators for the columns of W, rank-one
     and rank-two updates per state change) gives the indicators of a fresh factorization at
     those nodes on a long random walk through their states, nodes with F = 0 and without a
@@ -416,7 +418,7 @@ def test_paths_with_point_tableau_equal_paths_without(model, monkeypatch):
 
 
 @pytest.mark.parametrize("model", ["chain", "closing", "restart"])
-def test_compiled_tableau_walk_gives_the_same_path(model, monkeypatch):
+def test_compiled_tableau_walk_gives_the_same_path(kernels, model, monkeypatch):
     """The tableau walk's loop in one compiled call (PointTableau.walk, cfc_tableau_walk) against
     the loop in Python (exact.TABLEAU_COMPILED = False): the same path to the last bit, pivot by
     pivot, counters included -- on sixteen identical chains (every transition a point of 16
@@ -483,7 +485,7 @@ def test_perturbation_data_come_with_the_condensation(monkeypatch):
 
 
 @pytest.mark.parametrize("updates", [True, False])
-def test_paths_without_the_compiled_kernels_are_the_same(monkeypatch, updates):
+def test_paths_without_the_compiled_kernels_are_the_same(kernels, monkeypatch, updates):
     """Without cfcontact.native's kernels (no compiler, CFCONTACT_NATIVE=0) products with two
     columns go by BLAS' gemv and branches without updates by NumPy and LAPACK instead of the
     branch kernel: the same path, rounding apart (every product column by column, as on large
@@ -548,7 +550,7 @@ def _bitwise_same_paths(a, b, sa, sb, solver_counts=True):
 
 
 @pytest.mark.parametrize("case", ["chain folds", "copies: degenerate points", "random gaps", "no tangent"])
-def test_compiled_ordinary_transitions_give_the_same_path(monkeypatch, case):
+def test_compiled_ordinary_transitions_give_the_same_path(kernels, monkeypatch, case):
     """Ordinary transitions through one compiled call (exact._ordinary_transition,
     native.OrdinaryStep: the first root, the facet, the next branch and the checks) against the
     general form (exact.ORDINARY_COMPILED = False): the same path to the last bit, on long paths
