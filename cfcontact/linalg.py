@@ -176,10 +176,10 @@ def rcm_envelope(A: sp.spmatrix, perm: Optional[np.ndarray] = None) -> int:
 
 #: EnvelopeCholesky.solve works on blocks of at most this many entries (n x columns) at a time
 SOLVE_BLOCK_ENTRIES = 4_000_000
-#: ... and row-major (native.ENV_ROW_COLS columns as vectors) from this many columns on; fewer one
-#: by one (a strip, n = 24 000: 2 columns one by one 1.1 ms, row-major -- padded to 32 -- 3.1 ms;
-#: 8 columns 3.5 and 2.5 ms; 32 columns 14.2 and 5.2 ms)
-SOLVE_ROWS_MIN_COLUMNS = 6
+#: ... and row-major (native.ENV_ROW_COLS columns as vectors) from this many columns on; fewer two
+#: at a time (a strip, n = 24 000: 2 columns 0.54 ms, row-major -- padded to 32 -- 2.4 ms;
+#: 8 columns 2.8 and 3.2 ms; 12 columns 4.2 and 3.5 ms; 32 columns, one by one, 14.2 and 5.2 ms)
+SOLVE_ROWS_MIN_COLUMNS = 10
 
 
 class EnvelopeCholesky:
@@ -206,6 +206,7 @@ class EnvelopeCholesky:
         self.iperm[perm] = np.arange(self.n)
         self._first, self._ptr, self._v = first, ptr, v
         self._sqrt_d = np.sqrt(v[ptr[1:] - 1])
+        self._perm2 = None  # (solve: two columns)
         self._args = (self.n, native.address(first), native.address(ptr), native.address(v))
 
     @classmethod
@@ -219,8 +220,11 @@ class EnvelopeCholesky:
         if A.shape != (n, n):
             raise ValueError(f"EnvelopeCholesky needs a square matrix, not {A.shape[0]} x {A.shape[1]}")
         perm = rcm_order(A) if perm is None else np.asarray(perm, dtype=np.int64)
-        if perm.shape != (n,):
-            raise ValueError(f"EnvelopeCholesky: the order has {perm.size} entries, K has {n} rows")
+        if perm.shape != (n,) or (n and (perm.min() < 0 or perm.max() >= n
+                                         or np.bincount(perm, minlength=n).max() > 1)):
+            got = f" from {perm.min()} to {perm.max()}" if perm.size else ""
+            raise ValueError(f"EnvelopeCholesky: the order must be a permutation of 0 .. {n - 1} (K has {n} rows), "
+                             f"got {perm.size} entries{got}")
         iperm = np.empty(n, dtype=np.int64)
         iperm[perm] = np.arange(n)
         indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)
@@ -245,10 +249,19 @@ class EnvelopeCholesky:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """K^-1 b (b: n, or n x k; at least SOLVE_ROWS_MIN_COLUMNS columns row-major,
-        native.ENV_ROW_COLS at a time)."""
+        native.ENV_ROW_COLS at a time, fewer two at a time: :meth:`_solve2`)."""
         b = np.asarray(b, dtype=np.float64)
         if b.ndim == 2 and b.shape[1] >= SOLVE_ROWS_MIN_COLUMNS:
             return self._solve_rows(b)
+        if b.ndim == 2 and b.shape[1] == 2:  # (a branch's values and rates)
+            return self._solve2(b)
+        if b.ndim == 2 and b.shape[1] > 2:  # two at a time
+            out = np.empty(b.shape, order="F")
+            for c in range(0, b.shape[1] - 1, 2):
+                out[:, c:c + 2] = self._solve2(b[:, c:c + 2])
+            if b.shape[1] % 2:
+                out[:, -1] = self.solve(b[:, -1])
+            return out
         X = np.asfortranarray(b[self.perm].reshape(self.n, -1))
         k = X.shape[1]
         self._lib.cfc_env_forward(*self._args, k, native.address(X), max(self.n, 1))
@@ -256,6 +269,18 @@ class EnvelopeCholesky:
         out = np.empty_like(X)
         out[self.perm] = X
         return out.reshape(b.shape)
+
+    def _solve2(self, b: np.ndarray) -> np.ndarray:
+        """K^-1 b for two columns (n x 2), interleaved in one pass over the factor each way
+        (``cfc_env_solve2``: the bits of two single solves, in 0.43 instead of 0.70 ms on the
+        n = 24 000 strip)."""
+        if self._perm2 is None:  # the permutation of the interleaved entries (a 1-D gather: NumPy's
+            self._perm2 = (2 * self.perm[:, None] + np.arange(2)).ravel()  # 2-D one of rows is slower)
+        X = np.ascontiguousarray(b).reshape(-1)[self._perm2]
+        self._lib.cfc_env_solve2(*self._args, native.address(X))
+        out = np.empty((self.n, 2))
+        out.reshape(-1)[self._perm2] = X
+        return out
 
     def _solve_rows(self, b: np.ndarray) -> np.ndarray:
         """K^-1 b for the columns of b, row-major in blocks of at most about SOLVE_BLOCK_ENTRIES

@@ -1217,6 +1217,59 @@ void cfc_env_forward(int64_t n, const int64_t *first, const int64_t *ptr, const 
     }
 }
 
+/* x <- K^-1 x for two columns interleaved (x: n x 2, row-major), the whole solve (L^-1, D^-1,
+   L^-T) in one pass over L each way: each row's sums are those of cfc_env_forward and
+   cfc_env_backward (the same operations in the same order: the same bits as two solves alone),
+   the two columns side by side in the lanes of one vector operation */
+void cfc_env_solve2(int64_t n, const int64_t *first, const int64_t *ptr, const double *v, double *x)
+{
+    double p0 = 0.0, p1 = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+        const int64_t fi = first[i];
+        const double *ri = v + ptr[i] - fi;
+        double a[2] = {x[2 * i], x[2 * i + 1]};
+        if (fi < i) {
+            double s[4][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+            const int64_t k1 = i - 1;
+            int64_t k = fi;
+            for (; k + 4 <= k1; k += 4)
+                for (int j = 0; j < 4; j++)
+                    for (int q = 0; q < 2; q++)
+                        s[j][q] += ri[k + j] * x[2 * (k + j) + q];
+            for (; k < k1; k++)
+                for (int q = 0; q < 2; q++)
+                    s[0][q] += ri[k] * x[2 * k + q];
+            for (int q = 0; q < 2; q++)
+                a[q] -= (s[0][q] + s[1][q]) + (s[2][q] + s[3][q]);
+            a[0] -= ri[i - 1] * p0;
+            a[1] -= ri[i - 1] * p1;
+        }
+        x[2 * i] = p0 = a[0];
+        x[2 * i + 1] = p1 = a[1];
+    }
+    if (n == 0)
+        return;
+    for (int64_t i = 0; i < n; i++) {
+        const double d = v[ptr[i + 1] - 1];
+        x[2 * i] /= d;
+        x[2 * i + 1] /= d;
+    }
+    double y[2] = {x[2 * (n - 1)], x[2 * (n - 1) + 1]};
+    for (int64_t i = n - 1; i > 0; i--) {
+        const int64_t fi = first[i];
+        const double *ri = v + ptr[i] - fi;
+        double nx[2] = {x[2 * (i - 1)], x[2 * (i - 1) + 1]};
+        if (fi < i)
+            for (int q = 0; q < 2; q++)
+                nx[q] -= ri[i - 1] * y[q];
+        for (int64_t k = fi; k < i - 1; k++)
+            for (int q = 0; q < 2; q++)
+                x[2 * k + q] -= ri[k] * y[q];
+        for (int q = 0; q < 2; q++)
+            x[2 * (i - 1) + q] = y[q] = nx[q];
+    }
+}
+
 /* x <- L^-1 x for the nc columns of a row-major x (n x ldx, ldx a multiple of ENV_ROW_COLS >= nc,
    the columns nc..ldx-1 zero), ENV_ROW_COLS columns at a time: one contiguous piece of each row per
    entry of L, which vectorizes.  The columns are ordered by their first non-zero row start[c]
@@ -1436,6 +1489,8 @@ def _load():
     lib.cfc_env_forward.restype = None
     lib.cfc_env_backward.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]
     lib.cfc_env_backward.restype = None
+    lib.cfc_env_solve2.argtypes = [i64, ptr, ptr, ptr, ptr]
+    lib.cfc_env_solve2.restype = None
     lib.cfc_env_forward_rowmajor.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64, ptr]
     lib.cfc_env_forward_rowmajor.restype = None
     lib.cfc_env_backward_rowmajor.argtypes = [i64, ptr, ptr, ptr, i64, ptr, i64]

@@ -448,7 +448,8 @@ def _spd(n, seed, density=0.02):
 @pytest.mark.parametrize("n,seed", [(1, 0), (7, 1), (120, 2), (400, 3)])
 def test_envelope_cholesky_against_dense_solves(kernels, n, seed):
     """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
-    one and of several columns (one by one, and row-major in one and in several blocks), and the
+    one and of several columns (one by one, two at a time, and row-major in one and in several
+    blocks), and the
     forward substitutions of sparse rows -- some empty, some starting late in RCM order -- with
     dense columns beside: their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward
     substitution of a column."""
@@ -462,6 +463,9 @@ def test_envelope_cholesky_against_dense_solves(kernels, n, seed):
     tol = 1e-9 * np.abs(x_ref).max()
     assert np.abs(E.solve(b) - x_ref).max() <= tol
     assert np.abs(E.solve(b[:, 3]) - x_ref[:, 3]).max() <= tol
+    # two columns at a time, interleaved (fewer than SOLVE_ROWS_MIN_COLUMNS): the bits of single solves
+    ones = np.column_stack([E.solve(b[:, j]) for j in range(7)])
+    assert np.array_equal(E.solve(b), ones) and np.array_equal(E.solve(np.asfortranarray(b[:, 2:4])), ones[:, 2:4])
     with pytest.MonkeyPatch.context() as mp:  # the seven columns row-major too
         mp.setattr(linalg, "SOLVE_ROWS_MIN_COLUMNS", 2)
         assert np.abs(E.solve(b) - x_ref).max() <= tol
@@ -518,8 +522,9 @@ def test_envelope_cholesky_refuses_what_is_not_positive_definite(kernels):
         linalg.EnvelopeCholesky.factor(A)
     with pytest.raises(ValueError, match="square"):
         linalg.EnvelopeCholesky.factor(sp.csr_matrix(np.ones((2, 3))))
-    with pytest.raises(ValueError, match="order has 2 entries, K has 3 rows"):
-        linalg.EnvelopeCholesky.factor(A, np.arange(2))
+    for perm in (np.arange(2), np.array([0, 2, 2]), np.array([0, 1, 3])):
+        with pytest.raises(ValueError, match=r"permutation of 0 \.\. 2 \(K has 3 rows\), got"):
+            linalg.EnvelopeCholesky.factor(A, perm)
 
 
 def test_envelope_cholesky_needs_the_compiled_kernels(monkeypatch):
