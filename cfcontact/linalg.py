@@ -219,12 +219,15 @@ class EnvelopeCholesky:
         n = A.shape[0]
         if A.shape != (n, n):
             raise ValueError(f"EnvelopeCholesky needs a square matrix, not {A.shape[0]} x {A.shape[1]}")
-        perm = rcm_order(A) if perm is None else np.asarray(perm, dtype=np.int64)
-        if perm.shape != (n,) or (n and (perm.min() < 0 or perm.max() >= n
-                                         or np.bincount(perm, minlength=n).max() > 1)):
-            got = f" from {perm.min()} to {perm.max()}" if perm.size else ""
-            raise ValueError(f"EnvelopeCholesky: the order must be a permutation of 0 .. {n - 1} (K has {n} rows), "
-                             f"got {perm.size} entries{got}")
+        if perm is None:
+            perm = rcm_order(A)
+        else:  # (a caller's order: checked, since the kernels index by it)
+            perm = np.asarray(perm, dtype=np.int64)
+            if perm.shape != (n,) or (n and (perm.min() < 0 or perm.max() >= n
+                                             or np.bincount(perm, minlength=n).max() > 1)):
+                got = f" from {perm.min()} to {perm.max()}" if perm.size else ""
+                raise ValueError(f"EnvelopeCholesky: the order must be a permutation of 0 .. {n - 1} (K has {n} "
+                                 f"rows), got {perm.size} entries{got}")
         iperm = np.empty(n, dtype=np.int64)
         iperm[perm] = np.arange(n)
         indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)

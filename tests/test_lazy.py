@@ -250,11 +250,10 @@ def test_exact_paths_with_the_envelope_and_with_petscs_cholesky_agree(friction):
                                atol=1e-12)
 
 
-def test_the_envelope_factorization_records_that_K_is_positive_definite(monkeypatch):
+def test_the_envelope_factorization_records_that_K_is_positive_definite(kernels, monkeypatch):
     """Every pivot of the envelope Cholesky factor positive: the system keeps the inertia (0, 0, n)
-    and checks K before tracing without a factorization of its own."""
-    if native.library() is None:
-        pytest.skip("no compiled kernels (CFCONTACT_NATIVE=0 or no C compiler): PETSc factors K")
+    and checks K before tracing without a factorization of its own (skipped without the compiled
+    kernels: PETSc factors K then)."""
     system = random_system(4, 3, friction=0.8, extra_dofs=6)
     monkeypatch.setattr(linalg, "inertia", lambda A: pytest.fail("K factored again for its inertia"))
     assert CondensedSolver(system).k_factorization == "cholesky/envelope"
