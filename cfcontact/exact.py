@@ -1457,6 +1457,13 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
         return key not in ctx.visited or (key == start_key[0] if dd is None else (key, dd) == start_key)
 
     conts = _enumerated_continuations(ctx, ln, s, a_star, nodes, a_tol, extra, admit=untraversed)
+    if not conts and first is not None:
+        # the two crossings can lie closer together than the vertex is known: widen by how far
+        # rounding can move the roots of the first crossing on the branch it was made from
+        wide = REVISIT_SLACK * (abs(a_star - first.alpha_enter) + 2.0 * _crossing_uncertainty(ctx, path, first, nodes))
+        if wide > a_tol:
+            a_tol = wide
+            conts = _enumerated_continuations(ctx, ln, s, a_star, nodes, a_tol, extra, admit=untraversed)
     if not conts:
         return None
     conts.sort(key=lambda cd: cd[1] != d)  # (stable: the enumeration's order otherwise)
@@ -1475,6 +1482,30 @@ def _revisited_vertex(ctx, path, ln, s, a_star, tr, nxt, d, start_key, vanishing
                                                        for x, dx in conts],
                                       "transition": tr.index, "revisited": True, "nodes": nodes})))
     return c, dd, new
+
+
+def _crossing_uncertainty(ctx, path, first, nodes) -> float:
+    """How far in alpha rounding can move the roots of the constraints of ``nodes`` that vanish
+    at the crossing where branch ``first`` was entered, measured on the branch it was entered
+    from: each root's value tolerance over its rate, the largest among the roots that lie within
+    twice their own uncertainty of the crossing (0 when there is no such branch or root).
+
+    On an open node near a slender strip's free end a gap's tolerance over its rate is some 1e-8
+    in alpha, while the two crossings of a vertex reached a second time were 2.6e-9 apart: the
+    untraversed branch from there missed the vertex by 4 times that distance (Part D's m = 1000
+    strip at F = 30, a homotopy moving one node's data: "cycling" after 102 069 transitions)."""
+    if first.parent is None:
+        return 0.0
+    parent = path.branches[first.parent]
+    try:
+        pl = ctx.line(_canon(ctx.system, parent.sets), first.alpha_enter)
+    except SingularSystemError:
+        return 0.0
+    rate = np.abs(pl.dc)
+    k = np.isin(pl.cnode, nodes) & (rate > pl.tol_s)
+    unc = pl.tol_v[k] / rate[k]
+    near = np.abs(pl.c[k]) / rate[k] <= 2.0 * unc
+    return float(unc[near].max(initial=0.0))
 
 
 def _untraversed(ctx, alternatives, start_key) -> int:

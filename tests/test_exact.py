@@ -376,6 +376,43 @@ def test_a_vertex_reached_again_is_left_by_an_untraversed_branch(monkeypatch, on
     assert_transitions_verify(system, path, 1e-12)
 
 
+@pytest.mark.slow
+def test_a_revisited_vertex_known_less_precisely_than_its_crossings_apart():
+    """A vertex reached a second time whose two crossings lie closer together than rounding can
+    move its roots: on the m = 1000 strip at F = 30, in a homotopy that moves one node's condensed
+    data (tests/data/revisit_strip1000.npz: the branch 0.0018 below the vertex, the data at both
+    ends), the path crosses at t = 0.16208233814 into a branch where node 998 slips, and after
+    four transitions returns at t = 0.16208234087, 2.7e-9 away, through node 997 -- while the
+    roots of both nodes' gaps on the branch before are uncertain by 6e-9 and 8e-9.  Locating the
+    vertex to within twice the distance of the crossings found no untraversed continuation and
+    the walk ended "cycling"; widened by that uncertainty it leaves by the one branch not
+    traversed (997 slipping, 998 open, alpha decreasing) and goes on.  Every branch the walk
+    enters holds its constraints at its midpoint (a fresh solve of its sets there)."""
+    import cfcontact.exact as ex
+    from cfcontact import bench_stress
+    from cfcontact.options import PathOptions
+    from cfcontact.solution_path import SolutionPath
+
+    data = np.load(os.path.join(os.path.dirname(__file__), "data", "revisit_strip1000.npz"))
+    system = bench_stress.strip(1000, 30.0, seed=1, kind="uniform")
+    opts = PathOptions(max_transitions=40, alpha_min=None, alpha_max=None)
+    ctx = ex._Context(system, CondensedSolver(system), opts, 0.0, 1.0, float(opts.tie_rtol),
+                      W=np.column_stack([data["w0"], data["w1"]]))
+    codes = data["codes"].astype(np.int8)
+    path = SolutionPath.for_system(system, "exact", 0.0, 1.0, {})
+    ln, s = ex._leave_start(ctx, path, codes, 0.1615, 1)
+    status = ex._Walk.begin(ctx, path, ln, s, 0.1615).run()
+    assert status == "max_transitions" and len(path.transitions) == 40, path.events[-1].message[:300]
+    assert not any(e.kind == "cycling" for e in path.events)
+    revisits = [e for e in path.events if e.kind == "branch_point" and e.data.get("revisited")]
+    assert ctx.stats["revisited_vertices"] == len(revisits) >= 1
+    chosen = [a for a in revisits[0].data["alternatives"] if a["chosen"]]
+    assert chosen[0]["states"][997] == "slip-" and chosen[0]["states"][998] == "open"
+    for b in path.branches[:-1]:
+        mid = 0.5 * (b.alpha_enter + b.alpha_exit)
+        assert not ex._not_a_solution(ctx.line(ex._canon(system, b.sets), mid)), (b.index, mid)
+
+
 def test_dead_end_is_reported_not_raised(monkeypatch):
     import cfcontact.exact as ex
 
