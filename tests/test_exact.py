@@ -380,7 +380,7 @@ def test_a_vertex_reached_again_is_left_by_an_untraversed_branch(monkeypatch, on
 def test_a_revisited_vertex_known_less_precisely_than_its_crossings_apart():
     """A vertex reached a second time whose two crossings lie closer together than rounding can
     move its roots: on the m = 1000 strip at F = 30, in a homotopy that moves one node's condensed
-    data (tests/data/revisit_strip1000.npz: the branch 0.0018 below the vertex, the data at both
+    data (tests/data/revisit_strip1000.npz: the branch 5.8e-4 below the vertex, the data at both
     ends), the path crosses at t = 0.16208233814 into a branch where node 998 slips, and after
     four transitions returns at t = 0.16208234087, 2.7e-9 away, through node 997 -- while the
     roots of both nodes' gaps on the branch before are uncertain by 6e-9 and 8e-9.  Locating the
