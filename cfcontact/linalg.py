@@ -275,8 +275,8 @@ class EnvelopeCholesky:
 
     def _solve2(self, b: np.ndarray) -> np.ndarray:
         """K^-1 b for two columns (n x 2), interleaved in one pass over the factor each way
-        (``cfc_env_solve2``: the bits of two single solves, in 0.43 instead of 0.70 ms on the
-        n = 24 000 strip)."""
+        (``cfc_env_solve2``: the bits of two single solves, in 0.54 instead of 0.94 ms a call
+        on the n = 24 000 strip, docs/bench.md Part C)."""
         if self._perm2 is None:  # the permutation of the interleaved entries (a 1-D gather: NumPy's
             self._perm2 = (2 * self.perm[:, None] + np.arange(2)).ravel()  # 2-D one of rows is slower)
         X = np.ascontiguousarray(b).reshape(-1)[self._perm2]

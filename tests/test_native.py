@@ -449,9 +449,8 @@ def _spd(n, seed, density=0.02):
 def test_envelope_cholesky_against_dense_solves(kernels, n, seed):
     """linalg.EnvelopeCholesky (cfcontact.native's kernels) against NumPy's dense solve: solves of
     one and of several columns (one by one, two at a time, and row-major in one and in several
-    blocks), and the
-    forward substitutions of sparse rows -- some empty, some starting late in RCM order -- with
-    dense columns beside: their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward
+    blocks), and the forward substitutions of sparse rows -- some empty, some starting late in RCM
+    order -- with dense columns beside: their Gram matrix [B; f^T] A^-1 [B^T, f], and the backward
     substitution of a column."""
     A = _spd(n, seed)
     E = linalg.EnvelopeCholesky.factor(A)
