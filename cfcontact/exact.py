@@ -1248,7 +1248,14 @@ def _meeting_point(ctx, old: _Line, new: _Line, alpha) -> tuple:
     locates it precisely (:func:`_precise_side`) for both.  (Making the other side's multiplier
     equations exact there as well, e.g. an opening node's lam_n of -1e-4 set to 0, was tried and
     dropped: the change moves u at the neighbouring nodes through S, and a sticking node next to
-    a fold at F = 30 then slipped by 4.5 / rho, a residual of 1e-7.)"""
+    a fold at F = 30 then slipped by 4.5 / rho, a residual of 1e-7.)
+
+    At an apex (the data vanish at alpha, no gap) both are zero: the one solution of zero data
+    (lam^T S lam = -lam^T B u <= 0 by the complementarity conditions), which neither branch's
+    values there, the rounding of its larger ends, can give."""
+    if ctx.condensed and ctx.data.apex is not None and alpha == ctx.data.apex and _is_apex(ctx, alpha):
+        zero = (np.zeros_like(new.lam), np.zeros_like(new.g))
+        return zero, zero
     side = _precise_side(ctx, old, new)
     if side == "new":
         return (new.lam_at(alpha), new.ind_at(alpha)), None

@@ -492,7 +492,9 @@ class Verification:
         (max-norms): the normwise backward error of (1), what a backward-stable solve attains
         (relative to ||f|| alone, an ill-conditioned K -- a slender body -- shows its condition
         number times the rounding, whatever the solver)
-    normal, tangential: max-norm of the 2nd / 3rd block of G(y) in (4) over the force scale
+    normal, tangential: max-norm of the 2nd / 3rd block of G(y) in (4) over the force scale: the
+        largest of |lam|, rho |N u - g|, rho |T u| and, the gap left being a difference, rho |N u|
+        and rho |g|
     cone: max (|lam_t| - F lam_n)_+ ; sign: max (-lam_n)_+ and (N u - g)_+ (penetration, times rho)
     slip_direction: worst violation of "stick => T u = 0, slip+- => +-T u >= 0" (times rho)
     """
@@ -528,9 +530,13 @@ def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) ->
     r = Ku + Blam - fvec
     eq = np.abs(r).max(initial=0.0) / max(system.K_norm() * np.abs(u).max(initial=0.0) + np.abs(Blam).max(initial=0.0)
                                           + np.abs(fvec).max(initial=0.0), 1e-300)
-    Nu, Tu = rho * (N @ u - system.gap), rho * (T @ u)  # Nu: rho times the gap left, N u - g
+    Nu0 = N @ u
+    Nu, Tu = rho * (Nu0 - system.gap), rho * (T @ u)  # Nu: rho times the gap left, N u - g
+    # the gap left is a difference: its rounding is that of N u and g, which count in the scale (a
+    # punch landing with zero force: every N u - g and lam vanish, N u and g do not)
     scale = max(np.abs(ln).max(initial=0), np.abs(lt).max(initial=0), np.abs(Nu).max(initial=0),
-                np.abs(Tu).max(initial=0), 1e-300)
+                np.abs(Tu).max(initial=0), rho * np.abs(Nu0).max(initial=0),
+                rho * np.abs(np.asarray(system.gap, dtype=float)).max(initial=0), 1e-300)
     g2 = ln - np.maximum(0.0, ln + Nu)
     g = F * ln
     x = lt + Tu

@@ -153,6 +153,24 @@ def test_rounded_punch_gap_and_pressure_peaks_under_the_edges():
     assert p[np.argmin(np.abs(x))] < 0.5 * p.max()
 
 
+def test_a_flat_punch_landing_with_zero_force_verifies():
+    """A punch lowered onto the block with a gap under its flat part: every slave node lands at one
+    alpha with zero force, where every multiplier and every gap left N u - g vanish.  Its gaps are
+    differences of N u and g (1e-3 each), so rounding them leaves 1e-19; measured against those
+    alone (the scale before) the landing point verified to 0.4, now against rho |N u|, rho |g|."""
+    system = cfcontact.rounded_punch(half_width=0.5, edge_radius=0.2, zone=0.25, size=0.05, size_far=0.5,
+                                     gap0=1e-3, half=True, indentation=(0.0, 0.005), friction=0.6)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    (tr,) = path.transitions
+    assert tr.alpha == pytest.approx(0.2, rel=1e-12) and len(tr.changes) == system.m
+    landing = [(a, y) for a, y in path.iter_points() if a == tr.alpha]
+    assert len(landing) == 2
+    for a, y in landing:
+        assert np.abs(y[system.n:]).max() <= 1e-12 * np.abs(path.lams).max()  # zero force
+        assert cfcontact.verify(system, y, a).worst() < 1e-13
+    assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-13
+
+
 @pytest.mark.slow  # (a subprocess)
 @pytest.mark.parametrize("script,kwargs", [("cylinder_on_block", CYL), ("rounded_punch", PUNCH)])
 def test_script_writes_a_non_matching_msh_that_assembles_alike(tmp_path, script, kwargs):

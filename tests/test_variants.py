@@ -241,6 +241,25 @@ def test_a_load_reversed_through_zero_is_crossed_in_one_transition_by_both_metho
     assert len(y_apex) == 2 and max(np.abs(y[system.n:]).max() for y in y_apex) < 1e-12 * np.abs(f).max()
 
 
+def test_an_apex_between_branches_referenced_far_from_it_is_stored_as_zero():
+    """f2 = -f1 traced from alpha = -0.2226: the load vanishes at alpha = 1/2 (a double, so the data
+    are exactly zero there) and the slipping nodes open.  The incoming branch's values
+    at 1/2 are the rounding of its ends (4e-9 of loads of 3e7), which the stored points kept
+    (relative residual 0.5 to 1 against their own size); zero data have the one solution zero,
+    which both points now are."""
+    f = (-27620000.0, -20440000.0)
+    system = cfcontact.two_blocks(nx=6, ny=2, angle=30.48, friction=0.3, E={"body1": 2.411e10, "body2": 2.241e9},
+                                  nu=0.4303, plane="stress", tractions1={"top1": f},
+                                  tractions2={"top1": (-f[0], -f[1])})
+    path = cfcontact.trace_path(system, -0.2226, 1.143, method="exact")
+    (tr,) = path.transitions
+    assert path.status == "completed" and tr.alpha == 0.5 and len(tr.changes) >= system.m - 1
+    assert {c["from"] for c in tr.changes} == {"slip-"} and {c["to"] for c in tr.changes} == {"open"}
+    apex = [y for a, y in path.iter_points() if a == 0.5]
+    assert len(apex) == 2 and all(not np.any(y) for y in apex)
+    assert max(cfcontact.verify(system, y, a).worst() for a, y in path.iter_points()) < 1e-12
+
+
 @pytest.mark.slow
 def test_arc_script_writes_msh_that_assembles_alike(tmp_path, arc_model):
     msh = tmp_path / "arc.msh"
