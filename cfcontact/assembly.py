@@ -45,7 +45,7 @@ import ufl
 from cfcontact import compat, linalg, pairing as pairing_mod
 from cfcontact.errors import GeometryError, InputError, PairingWarning
 from cfcontact.material import check_material, lame_parameters
-from cfcontact.system import ContactGeometry, ContactSystem, default_rho
+from cfcontact.system import MAGNITUDE_LIMIT, ContactGeometry, ContactSystem, default_rho
 
 BODY1, BODY2 = 1, 2
 CONTACT1, CONTACT2 = 10, 20
@@ -694,6 +694,7 @@ def assemble_contact_system(
     t0 = time.perf_counter()
     nr, cr, nc, cc, v = fem.stiffness_triplets(E, nu, plane)
     lift = _lifting(canon, 2 * nr + cr, 2 * nc + cc, v, u_D)  # K_fD u_D^k of the prescribed displacements
+    _check_lifting(lift, comm)
     r = canon[2 * nr + cr]
     c = canon[2 * nc + cc]
     keep = (r >= 0) & (c >= 0)
@@ -960,6 +961,20 @@ def _lifting(canon, gr, gc, v, u_D):
         b = (c >= 0) & (r < 0) & (uk[gr] != 0.0)  # (A_Df)^T
         out.append((np.concatenate([r[a], c[b]]), 0.5 * np.concatenate([v[a] * uk[gc[a]], v[b] * uk[gr[b]]])))
     return out
+
+
+def _check_lifting(lift, comm):
+    """InputError naming the prescribed displacements (dirichlet) when the loads K_fD u_D^k of the prescribed displacements
+    overflow or exceed MAGNITUDE_LIMIT: then the prescribed displacements, not the tractions or
+    body forces, are what is too large (collective under MPI)."""
+    for k, (_, lval) in enumerate(lift):
+        lval = np.asarray(lval, dtype=float)
+        big = float(np.abs(lval).max(initial=0.0)) if np.all(np.isfinite(lval)) else float("inf")
+        big = comm.allreduce(big, op=MPI.MAX)
+        if big > MAGNITUDE_LIMIT:
+            size = "overflow (inf)" if not np.isfinite(big) else f"reach {big:.3g}"
+            raise InputError(f"the prescribed displacements (dirichlet) are too large: their loads K u_D at "
+                             f"alpha = {k} {size}, beyond {MAGNITUDE_LIMIT:g}; rescale the units")
 
 
 def _prescribed_table(fixed, u_D):

@@ -29,7 +29,7 @@ from typing import Any, Optional
 from cfcontact.errors import InputError
 from cfcontact.interrupts import python_sigint, sigint_deferred  # noqa: F401 (the CLI imports them from here)
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
-from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions
+from cfcontact.options import BACKENDS, MAX_FRICTION, MAX_TOL, METHODS, AlphaSpan, PathOptions
 from cfcontact.pairing import OBSTACLE_KEYS, OBSTACLE_OPTIONAL, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
@@ -166,9 +166,10 @@ def _path_keys() -> dict:
         "parameter": Key("str", "alpha", None, '"alpha" (the load path; default) or "friction": continuation in F at '
                                                'the load f(alpha_start) from friction_start to friction_end '
                                                '(condensed backend)'),
-        "friction_start": Key("float", None, None, 'parameter = "friction": the first F (default 0)'),
-        "friction_end": Key("float", None, None, 'parameter = "friction": the last F (default: the largest '
-                                                 '[contact] friction)'),
+        "friction_start": Key("float", None, None, f'parameter = "friction": the first F, at most {MAX_FRICTION:g} '
+                                                   '(default 0)'),
+        "friction_end": Key("float", None, None, f'parameter = "friction": the last F, at most {MAX_FRICTION:g} '
+                                                 '(default: the largest [contact] friction)'),
     }
     for f in fields(PathOptions):
         notes = [] if f.default is None else [f"default {_toml(f.default)}"]
@@ -188,7 +189,8 @@ SCHEMA = {
         "plane": Key("str", None, _toml(DEFAULT_MATERIAL["plane"]), 'or "stress"'),
     },
     "contact": {
-        "friction": Key("friction", 0.0, "0.5", "Coulomb coefficient >= 0, or a list with one per contact node"),
+        "friction": Key("friction", 0.0, "0.5", f"Coulomb coefficient in [0, {MAX_FRICTION:g}], or a list with one per "
+                                                "contact node"),
         "rho": Key("float", None, None, "augmentation parameter > 0 (default: automatic)"),
         "pairing": Key("str", None, None, '"node" (matching nodes, no gap) or "segment" (node to segment, with the '
                                           'initial gap; default for "cylinder", "punch" and an obstacle)'),
@@ -302,6 +304,9 @@ def _obstacle(value, where):
     if not isinstance(value, dict):
         raise CaseError(f"{where}: expected {TYPE_NAMES['obstacle']}, got {_tname(value)} {value!r}")
     kind = value.get("kind")
+    if "kind" not in value:
+        raise CaseError(f"{where} kind is missing: give kind = \"line\" (with point, normal) or kind = \"circle\" "
+                        f"(with center, radius)")
     if kind not in OBSTACLE_KEYS:
         raise CaseError(f"{where} kind: expected \"line\" (with point, normal) or \"circle\" (with center, "
                         f"radius), got {kind!r}")
@@ -437,6 +442,9 @@ def _check_value(typ, value, where):
             raise bad
         if not all(math.isfinite(x) and x >= 0 for x in vals):
             raise CaseError(f"{where}: the friction coefficient must be >= 0 (and finite), got {value!r}")
+        if max(vals) > MAX_FRICTION:
+            raise CaseError(f"{where}: the friction coefficient must be at most {MAX_FRICTION:g} (the limit of "
+                            f"cfcontact map --friction-range), got {max(vals)!r}")
         return float(value) if _is_number(value) else [float(x) for x in value]
     raise AssertionError(typ)
 
@@ -735,8 +743,8 @@ def _validate_path(table):
     path = _check_section("path", table, SCHEMA["path"])
     if path["method"] not in METHODS:
         raise CaseError(f"[path] method: unknown method {path['method']!r}; valid: {', '.join(map(repr, METHODS))}")
-    if path.get("tol") is not None and not path["tol"] > 0:
-        raise CaseError(f"[path] tol: must be > 0, got {path['tol']!r}")
+    if path.get("tol") is not None and not 0 < path["tol"] <= MAX_TOL:
+        raise CaseError(f"[path] tol: must be in (0, {MAX_TOL:g}], got {path['tol']!r}")
     if path.get("max_iter") is not None and not path["max_iter"] >= 1:
         raise CaseError(f"[path] max_iter: must be >= 1, got {path['max_iter']!r}")
     if path["backend"] not in BACKENDS:
@@ -767,7 +775,7 @@ def _unused_path_keys(raw, path) -> list:
                   if k in raw]
     else:
         notes += [f'[path] {k}: used by paths over alpha only; ignored with parameter = "friction"'
-                  for k in ("alpha_min", "alpha_max", "tree") if k in raw]
+                  for k in ("alpha_end", "alpha_min", "alpha_max", "tree") if k in raw]
     return notes
 
 
@@ -782,6 +790,10 @@ def _validate_friction_parameter(path, contact):
     path.setdefault("friction_start", 0.0)
     path.setdefault("friction_end", float(max(fr) if isinstance(fr, list) else fr))
     F0, F1 = path["friction_start"], path["friction_end"]
+    for key, F in (("friction_start", F0), ("friction_end", F1)):
+        if F > MAX_FRICTION:
+            raise CaseError(f"[path] {key}: the friction coefficient must be at most {MAX_FRICTION:g} (the limit of "
+                            f"cfcontact map --friction-range), got {F!r}")
     if F0 == F1 == 0.0 and not fr:
         raise CaseError('[path] parameter = "friction": the path runs from friction_start to friction_end (default '
                         "[contact] friction, here 0); give friction_end > 0")
@@ -811,7 +823,31 @@ def _model_groups(kind, geometry) -> dict:
             gmsh.merge(geometry["file"])
         except Exception as exc:
             raise CaseError(f"[geometry] file: gmsh cannot read {geometry['file']!r}: {exc}") from None
-        return {(int(d), int(n)): model.getPhysicalName(d, n) for d, n in model.getPhysicalGroups()}
+        groups = {(int(d), int(n)): model.getPhysicalName(d, n) for d, n in model.getPhysicalGroups()}
+    _check_msh_groups(groups, geometry["file"])
+    return groups
+
+
+#: The physical groups of the tag convention a .msh must name (DESIGN.md, docs/geometry.md)
+_NAMED_GROUPS = {(2, 1): "body1", (2, 2): "body2", (1, 10): "contact1", (1, 20): "contact2"}
+
+
+def _check_msh_groups(groups, file):
+    """CaseError naming what is wrong with a .msh's physical groups as a whole: none at all, or
+    the groups of the tag convention numbered but not named (the case's tags, the slave and the
+    assembly find them by name)."""
+    convention = ("body1=1, contact1=10, and body2=2, contact2=20 for a second body; other boundary pieces "
+                  "by name or number (docs/geometry.md, \"Tag convention\")")
+    if not groups:
+        raise CaseError(f"[geometry] file: {file!r} has no physical groups; a .msh needs the named physical groups "
+                        f"of the tag convention: {convention}")
+    unnamed = [(d, n) for (d, n), name in sorted(groups.items()) if not name]
+    wrong = [(d, n) for (d, n), want in _NAMED_GROUPS.items() if (d, n) in groups and groups[(d, n)] != want]
+    if unnamed and (wrong or len(unnamed) == len(groups)):
+        found = ", ".join(f"{n} ({d}-D)" for d, n in unnamed)
+        raise CaseError(f"[geometry] file: {file!r} has physical groups without names ({found}"
+                        f"{'; none is named' if len(unnamed) == len(groups) else ''}); cfcontact needs them named "
+                        f"as the tag convention says: {convention}")
 
 
 def _check_tag(tag, groups, dim, label):
@@ -1092,7 +1128,7 @@ def _case_message(message, contact) -> str:
             return f"[loads.f{k}] {first[len(f'tractions{k}'):]}"
     if "obstacle" in contact and "obstacle" in message:
         return f"[contact.obstacle]: {first}"
-    if message.startswith(("non-zero prescribed displacement", "dirichlet")) or "prescribed x displacements" in \
+    if message.startswith(("non-zero prescribed displacement", "dirichlet", "the prescribed displacements")) or "prescribed x displacements" in \
             message or "prescribed y displacements" in message:
         return f"[loads.dirichlet]: {first}"
     return message

@@ -22,6 +22,7 @@ import logging
 import math
 import os
 import re
+import shlex
 import signal
 import sys
 import threading
@@ -32,7 +33,7 @@ import warnings
 from cfcontact.case import CaseError, check_size, load_case, parse_component, python_sigint, reference_text
 from cfcontact.errors import CfcontactError, InputError
 from cfcontact.interrupts import caused_by_interrupt
-from cfcontact.options import ALPHA_LIMIT
+from cfcontact.options import ALPHA_LIMIT, MAX_FRICTION
 from cfcontact.report import format_report, path_report, turned_back_text, unverified_alphas, unverified_text
 from cfcontact.run import (
     DEFAULT_CHECKPOINT_EVERY,
@@ -40,6 +41,7 @@ from cfcontact.run import (
     Runner,
     StopConditions,
     Stopped,
+    default_alpha,
     load_saved_path,
     output_folder,
     parameter_label,
@@ -53,7 +55,7 @@ EXIT_OK, EXIT_FAILURE, EXIT_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 
 #: INCOMPLETE_STATUSES, or rows of a map could not be traced): a script must not take it for a
 #: whole result
 EXIT_INCOMPLETE = 4
-INCOMPLETE_STATUSES = ("stuck", "cycling", "max_transitions")
+INCOMPLETE_STATUSES = ("stuck", "cycling", "max_transitions", "max_steps")
 
 
 # ============================================================ progress / logging
@@ -125,10 +127,6 @@ def _logging(level):
 #: The most frames of a rendered animation (each is one off-screen render)
 MAX_FRAMES = 10000
 
-#: The largest friction coefficient of a friction map's range (Coulomb coefficients of real
-#: materials are below 10; F = 30 already sticks every node of the seed's models)
-MAX_FRICTION = 1e6
-
 #: "file:line: Category: message" -- the first line of a formatted Python warning
 _WARNING_LINE = re.compile(r"^.*?:\d+: (\w+): (.*)$")
 
@@ -194,6 +192,15 @@ def output_file(out, flag="-o") -> str:
     return out
 
 
+def _no_empty_names(args):
+    """CaseError for an empty output name (``-o ""``): it would otherwise read as no -o at all and
+    the default be written without a word."""
+    for attr, flag in (("output", "-o/--output"), ("animation", "--animation")):
+        if getattr(args, attr, None) == "":
+            raise CaseError(f"{flag}: the name is empty; give a file or folder name (or leave {flag.split('/')[0]} "
+                            "out for the default)")
+
+
 def _say(args, *text):
     if not getattr(args, "quiet", False):
         print(*text, flush=True)
@@ -205,8 +212,10 @@ def _warn(args, text):
 
 
 @contextlib.contextmanager
-def _sigint(runner, progress):
-    """First Ctrl-C: stop cleanly at the next accepted point; second: KeyboardInterrupt."""
+def _sigint(runner, progress, note="stopping at the next point (checkpoint follows); Ctrl-C again to abort"):
+    """First Ctrl-C: stop cleanly at the next accepted point (while the outputs are written: before
+    the next file; a Ctrl-C raised inside a library such as VTK could be lost there); second:
+    KeyboardInterrupt."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -217,8 +226,7 @@ def _sigint(runner, progress):
             raise KeyboardInterrupt
         runner.interrupt()
         progress.clear()
-        print("\ncfcontact: stopping at the next point (checkpoint follows); Ctrl-C again to abort",
-              file=sys.stderr, flush=True)
+        print(f"\ncfcontact: {note}", file=sys.stderr, flush=True)
 
     old = signal.signal(signal.SIGINT, handler)
     try:
@@ -277,7 +285,7 @@ def _run_case(args, case, run, stops, t_start):
     progress = _Progress(enabled=not args.quiet and (args.verbose or sys.stderr.isatty()), tty=sys.stderr.isatty())
     runner = Runner(stops, progress, t_start)
     _ProgressAwareHandler.progress = progress
-    again = f"{args.case}" + (f" --output {args.output}" if args.output else "")
+    again = shlex.quote(args.case) + (f" --output {shlex.quote(args.output)}" if args.output else "")
     try:
         run.start()
         if run.traced:
@@ -303,7 +311,10 @@ def _run_case(args, case, run, stops, t_start):
             _warn(args, f"{runner.reason} after the main run: " + (
                 f"the tree is incomplete, {left} alternative(s) not followed" if left else
                 "the backtracking was cut short") + " (see the events in summary.json / info)")
-        files = run.finish(path, lambda text: _warn(args, text), system)
+        runner.interrupted = False  # (a Ctrl-C while tracing stopped the trace: Stopped above)
+        with _sigint(runner, progress, "stopping before the next output (the checkpoint is kept); Ctrl-C again to "
+                                       "abort"):
+            files = run.finish(path, lambda text: _warn(args, text), system, interrupted=lambda: runner.interrupted)
     except Stopped as stop:
         progress.done()
         ck = os.path.join(run.partial, "checkpoint")
@@ -338,6 +349,9 @@ def _run_case(args, case, run, stops, t_start):
         _ProgressAwareHandler.progress = None
     progress.done()
     s = path.summary()
+    if runner.interrupted:  # the Ctrl-C came after the last output: the run's folder is complete
+        print(f"cfcontact run: interrupted (the outputs were complete: {run.out}/)", file=sys.stderr, flush=True)
+        return EXIT_INTERRUPTED
     _say(args, f"cfcontact: {s['status']}: {s['points']} points, {s['branches']} branches, {s['transitions']} "
                f"transitions ({s['folds']} folds), max multiplicity {s['max_multiplicity']}; wrote {run.out}/ "
                f"({', '.join(files)})")
@@ -358,6 +372,9 @@ def cmd_schema(args):
 
 
 def cmd_plot(args):
+    if args.multiplicity and (args.component is not None or args.zoom):  # (plots of alpha against a component)
+        raise CaseError(f"{'--component' if args.component is not None else '--zoom'}: not with --multiplicity (the "
+                        "number of solutions over alpha has no component and no zoom panel); give one or the other")
     src, path = _load_saved(args.saved)
     component = parse_component(args.component, "--component") if args.component is not None else None
     if component is not None:
@@ -434,14 +451,7 @@ def cmd_render(args):
     if args.animation and args.alpha is None and not args.panel and args.output is None:
         _render_animation(args, path, ws, src)
         return EXIT_OK
-    if args.alpha is None:
-        k, alpha = path.max_multiplicity()
-        if not k:
-            raise CaseError("the path covers no alpha interval; give --alpha")
-        if k == 1:  # one solution everywhere: the farthest point the path reached (its end)
-            alpha = float(path.alphas[-1])
-    else:
-        alpha = args.alpha
+    alpha = default_alpha(path) if args.alpha is None else args.alpha
     sols = path.solutions_at(alpha)
     if not sols:
         lo, hi = float(path.alphas.min()), float(path.alphas.max())
@@ -485,7 +495,8 @@ def cmd_export(args):
     except CaseError:
         material = None
         _warn(args, f"{src!r} stores no material: no von_mises attribute")
-    fn, what = fields.export_path(path, out, alpha=args.alpha, points=args.points, material=material)
+    alpha = default_alpha(path) if args.alpha is None and not args.points else args.alpha  # (as render)
+    fn, what = fields.export_path(path, out, alpha=alpha, points=args.points, material=material)
     _say(args, f"wrote {fn} ({what})")
     return EXIT_OK
 
@@ -648,13 +659,15 @@ def _setup_render(sub, common):
 
 def _setup_export(sub, common):
     p = sub.add_parser("export", parents=[common], help="write solutions of a saved path as XDMF (ParaView)",
-                       description="Write the solutions at one alpha (default: the alpha of largest multiplicity) "
+                       description="Write the solutions at one alpha (default, as render: the alpha of largest "
+                                   "multiplicity; the path's last point where it has one solution everywhere) "
                                    "or every stored path point as an XDMF 3 file with inline XML data: "
                                    "displacement, contact_state, lam_n, lam_t, body, von_mises.")
     p.add_argument("saved", metavar="SAVED_PATH_DIR")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--alpha", type=_finite, metavar="A",
-                   help="all solutions at alpha A (default: the alpha of largest multiplicity)")
+                   help="all solutions at alpha A (default, as render: the alpha of largest multiplicity; the "
+                        "path's last point where it has one solution everywhere)")
     g.add_argument("--points", action="store_true", help="every stored path point, in path order (time series)")
     p.add_argument("-o", "--output", metavar="FILE.xdmf", help="XDMF file (default solutions.xdmf)")
     p.set_defaults(func=cmd_export)
@@ -874,6 +887,7 @@ def _main(argv) -> int:
     level = logging.ERROR if args.quiet else logging.INFO if args.verbose else logging.WARNING
     with _logging(level), _python_warnings(args):
         try:
+            _no_empty_names(args)
             return int(args.func(args) or 0)
         except (CaseError, InputError) as exc:
             print(f"cfcontact {args.command}: error: {exc}", file=sys.stderr, flush=True)

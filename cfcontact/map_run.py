@@ -44,6 +44,8 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
     else:
         stem = os.path.splitext(os.path.basename(case["_file"]))[0]
         out = os.path.join(os.path.dirname(case["_file"]), f"{stem}_map")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise CaseError(f"the output folder {out!r} is a file, not a folder; choose another --output")
     if os.path.exists(out):
         if not force:
             raise CaseError(f"the output folder {out!r} exists; use --force to replace it or --output DIR")

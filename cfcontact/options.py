@@ -28,6 +28,15 @@ BACKENDS = ("auto", "full", "condensed")
 #: asymptotic regime (and the seed method's steps of at most h_max could not cover it).
 ALPHA_LIMIT = 1e6
 
+#: The largest friction coefficient a case or a friction map takes ([contact] friction, [path]
+#: friction_start / friction_end, map --friction-range): Coulomb coefficients of real materials are
+#: below 10, and F = 30 already sticks every node of the seed's models
+MAX_FRICTION = 1e6
+
+#: The largest SSNM tolerance of a path's start point ([path] tol): a start solved more coarsely
+#: leaves the branch it lies on unverified (the seed then ends "cycling")
+MAX_TOL = 1e-2
+
 #: Default relative tolerance of the exact method deciding that an indicator value or rate
 #: "vanishes": relative to the local size of the indicators, on top of their rounding error measured
 #: by iterative refinement (see :mod:`cfcontact.exact`).
@@ -63,7 +72,7 @@ class PathOptions:
     max_transitions: int = _option(1000000, "int", "transition cap (status max_transitions)")
     alpha_min: Optional[float] = _option(None, "float", "stop when alpha < alpha_min (default: min(start, end))")
     alpha_max: Optional[float] = _option(None, "float", "stop when alpha > alpha_max (default: max(start, end))")
-    tol: float = _option(1e-9, "float", "SSNM tolerance of the start point")
+    tol: float = _option(1e-9, "float", f"SSNM tolerance of the start point, in (0, {MAX_TOL:g}]")
     max_iter: int = _option(100, "int", "SSNM iterations of the start point")
     tree: bool = _option(False, "bool", "follow every alternative of every branch point too (the whole tree "
                                         "reachable from the start)", ("exact",))
@@ -92,6 +101,8 @@ class PathOptions:
             bad.append(f"need h0 > 0, got {self.h0}")
         if int(self.max_steps) < 1 or int(self.max_transitions) < 0:
             bad.append(f"need max_steps >= 1 and max_transitions >= 0, got {self.max_steps}, {self.max_transitions}")
+        if not (0 < self.tol <= MAX_TOL):
+            bad.append(f"tol must be in (0, {MAX_TOL:g}], got {self.tol!r}")
         if not (0 < self.tie_rtol < 1e-2):
             bad.append(f"tie_rtol must be in (0, 1e-2), got {self.tie_rtol!r}")
         if bad:

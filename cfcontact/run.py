@@ -34,6 +34,7 @@ import math
 import os
 import shutil
 import socket
+import tempfile
 import time
 import tomllib
 from dataclasses import dataclass
@@ -51,7 +52,7 @@ from cfcontact.stepper import CHECKPOINT
 log = logging.getLogger(__name__)
 
 __all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
-           "has_checkpoint", "write_outputs", "panel_solutions", "resolve_saved", "saved_material", "load_saved_path",
+           "has_checkpoint", "write_outputs", "panel_solutions", "default_alpha", "resolve_saved", "saved_material", "load_saved_path",
            "parameter_label", "output_folder", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
@@ -290,17 +291,19 @@ class OutputLock:
 
 
 # ============================================================ checkpoints
-def save_checkpoint(partial, path, case, reason, resume_state):
-    """Write ``<partial>/checkpoint/`` (path/ + state.json) atomically."""
-    return _write_checkpoint(partial, path, case, reason, resume_state)
+def save_checkpoint(partial, path, case, reason, resume_state, replace=False):
+    """Write ``<partial>/checkpoint/`` (path/ + state.json) atomically.  ``replace``: the run was
+    started with ``--force``, so its resume replaces an existing output folder, as the run would
+    have (state.json's ``"replace"``)."""
+    return _write_checkpoint(partial, path, case, reason, resume_state, replace=replace)
 
 
-def save_traced(partial, path, case):
+def save_traced(partial, path, case, replace=False):
     """The checkpoint of a traced path (``"traced": true``): resuming it only writes the outputs."""
-    return _write_checkpoint(partial, path, case, "traced", None, traced=True)
+    return _write_checkpoint(partial, path, case, "traced", None, traced=True, replace=replace)
 
 
-def _write_checkpoint(partial, path, case, reason, resume_state, traced=False):
+def _write_checkpoint(partial, path, case, reason, resume_state, traced=False, replace=False):
     final = os.path.join(partial, CHECKPOINT_DIRS[0])
     tmp = os.path.join(partial, ".checkpoint-new")
     shutil.rmtree(tmp, ignore_errors=True)
@@ -309,7 +312,7 @@ def _write_checkpoint(partial, path, case, reason, resume_state, traced=False):
     state = {"format": CHECKPOINT_FORMAT, "version": 1, "reason": reason, "time": time.time(),
              "method": path.method, "resumable": traced or resume_state is not None, "traced": bool(traced),
              "resume_state": resume_state, "physics": physics(case), "system_checksum": path.system_checksum,
-             "case_file": case["_file"], "summary": path.summary()}
+             "case_file": case["_file"], "summary": path.summary(), "replace": bool(replace)}
     write_json(os.path.join(tmp, "state.json"), state)
     old = os.path.join(partial, CHECKPOINT_DIRS[1])
     shutil.rmtree(old, ignore_errors=True)
@@ -393,10 +396,39 @@ def has_checkpoint(partial) -> bool:
     return any(os.path.isfile(os.path.join(partial, n, "state.json")) for n in CHECKPOINT_DIRS)
 
 
+def damaged_checkpoint(partial) -> Optional[str]:
+    """What is missing from a checkpoint folder of ``partial`` that holds some of a checkpoint's
+    files but not all (``state.json`` or ``path/``), or None: no such folder (a complete checkpoint,
+    or none at all: an empty ``checkpoint/`` is no checkpoint).  A save writes a checkpoint in
+    ``.checkpoint-new/`` and renames it, so a partial one is damage, not a run stopped early."""
+    if any(os.path.isfile(os.path.join(partial, n, "state.json")) and os.path.isdir(os.path.join(partial, n, "path"))
+           for n in CHECKPOINT_DIRS):
+        return None
+    for name in CHECKPOINT_DIRS:
+        ck = os.path.join(partial, name)
+        try:
+            held = os.listdir(ck) if os.path.isdir(ck) else []
+        except OSError:
+            held = []
+        if held:
+            missing = "state.json" if not os.path.isfile(os.path.join(ck, "state.json")) else "path/"
+            return f"{os.path.join(ck, missing)} is missing"
+    return None
+
+
 # ============================================================ outputs
-def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, system=None, saved=None):
+def _go_on(interrupted: Optional[Callable]):
+    """KeyboardInterrupt when ``interrupted()`` says a Ctrl-C came (held back by the caller's
+    handler while the outputs were written): the writing stops at this clean point."""
+    if interrupted is not None and interrupted():
+        raise KeyboardInterrupt
+
+
+def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, system=None, saved=None,
+                  interrupted: Optional[Callable] = None):
     """Plots, renders, the saved path and summary.json into ``outdir``; returns the files written.
-    ``saved``: a folder where ``path`` is already saved (the traced checkpoint): linked, not saved again."""
+    ``saved``: a folder where ``path`` is already saved (the traced checkpoint): linked, not saved again.
+    ``interrupted``: asked before each output (:meth:`CaseRun.finish`)."""
     out = case["output"]
     files = []
     t = time.perf_counter()
@@ -409,6 +441,7 @@ def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, sys
         fh.write(case["_text"])
     files.append("case.toml")
     timings["save"] = time.perf_counter() - t
+    _go_on(interrupted)
     component = out.get("component")
     if component is not None:
         path.component_index(component)  # range check (InputError)
@@ -427,17 +460,19 @@ def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, sys
         for fmt in out["plot_formats"]:
             save_figure(fig, os.path.join(outdir, f"path.{fmt}"))
             files.append(f"path.{fmt}")
+            _go_on(interrupted)
         if path.multiplicity_intervals():
             fig = plot_multiplicity(path, xlabel=parameter_label(path))
             for fmt in out["plot_formats"]:
                 save_figure(fig, os.path.join(outdir, f"multiplicity.{fmt}"))
                 files.append(f"multiplicity.{fmt}")
+                _go_on(interrupted)
         timings["plot"] = time.perf_counter() - t
     if (out["render_panel"] or out["render_animation"] or out["xdmf"]) and path.geometry is None:
         warn("the path has no geometry; no renders" + (" and no XDMF file" if out["xdmf"] else ""))
     elif out["render_panel"] or out["render_animation"] or out["xdmf"]:
         t = time.perf_counter()
-        files += _write_pictures(path, case, outdir, warn)
+        files += _write_pictures(path, case, outdir, warn, interrupted)
         timings["render"] = time.perf_counter() - t
     summary = {"format": RUN_FORMAT, "version": 1, "case_file": case["_file"], "title": case.get("title"),
                "summary": path.summary(), **path_report(path), "timings": timings, "files": files}
@@ -446,7 +481,7 @@ def write_outputs(path, case, outdir, timings, warn: Callable = log.warning, sys
     return files
 
 
-def _write_pictures(path, case, outdir, warn) -> list:
+def _write_pictures(path, case, outdir, warn, interrupted=None) -> list:
     """solutions.xdmf, panel.png and the animation as the case's [output] asks; the files written."""
     out, files = case["output"], []
     ws = out.get("window_size")
@@ -457,6 +492,7 @@ def _write_pictures(path, case, outdir, warn) -> list:
 
         fields.write_xdmf(os.path.join(outdir, "solutions.xdmf"), path.geometry, sols)
         files.append("solutions.xdmf")
+        _go_on(interrupted)
     if out["render_panel"] and sols:
         from cfcontact import render
 
@@ -465,10 +501,12 @@ def _write_pictures(path, case, outdir, warn) -> list:
             from cfcontact import fields
 
             stresses = [fields.von_mises(path.geometry, s) for s in sols]  # (at its alpha: prescribed u)
+        log.info("writing %s", os.path.join(outdir, "panel.png"))
         render.render_panel(path.geometry, sols, os.path.join(outdir, "panel.png"), magnification=mag,
                             parameter=path.parameter_name,
                             window_size=None if ws is None else tuple(ws), stresses=stresses)
         files.append("panel.png")
+        _go_on(interrupted)
     if out["render_animation"] and len(path.alphas):
         from cfcontact import render
 
@@ -487,12 +525,24 @@ def _write_pictures(path, case, outdir, warn) -> list:
         if res.note:
             warn(res.note)
         files.append(os.path.relpath(res.path, outdir) + ("/" if res.kind == "png-frames" else ""))
+        _go_on(interrupted)
     return files
+
+
+def default_alpha(path) -> float:
+    """The alpha that ``render`` and ``export`` show without ``--alpha``, that of the run's
+    panel and solutions.xdmf (:func:`panel_solutions`): the alpha of largest multiplicity where it
+    is above one, else the path's last point (the farthest it reached).  CaseError when the path
+    covers no interval."""
+    k, a = path.max_multiplicity()
+    if not k:
+        raise CaseError(f"the path covers no {path.parameter_name} interval; give --alpha")
+    return float(a) if k > 1 else float(path.alphas[-1])
 
 
 def panel_solutions(path):
     """The solutions at the alpha of largest multiplicity, where it is above one (else the last
-    path point: the farthest the path reached)."""
+    path point: the farthest the path reached; :func:`default_alpha`)."""
     k, a = path.max_multiplicity()
     sols = path.solutions_at(a) if k > 1 else []
     if not sols and len(path.alphas):
@@ -507,8 +557,9 @@ def panel_solutions(path):
 
 def output_folder(folder, what, flag=None) -> str:
     """``folder`` created if missing, to hold ``what`` (its description in messages); CaseError
-    (prefixed by the command-line ``flag`` when given) where a file stands in its way or it
-    cannot be created."""
+    (prefixed by the command-line ``flag`` when given) where a file stands in its way, it cannot
+    be created, or it takes no new files (a read-only or pseudo file system such as /proc, no
+    write permission: checked by creating and removing a file in it, before any work)."""
     prefix = f"{flag}: " if flag else ""
     blocking = blocking_file(folder)
     if blocking is not None:
@@ -517,6 +568,13 @@ def output_folder(folder, what, flag=None) -> str:
         os.makedirs(folder, exist_ok=True)
     except OSError as exc:
         raise CaseError(f"{prefix}cannot create the folder {folder!r} for {what}: {exc.strerror}") from None
+    try:
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".cfcontact-probe-")
+        os.close(fd)
+        os.remove(probe)
+    except OSError as exc:
+        raise CaseError(f"{prefix}cannot write {what}: the folder {folder!r} takes no new files "
+                        f"({exc.strerror})") from None
     return folder
 
 
@@ -570,6 +628,7 @@ class CaseRun:
         self.timings = {}
         self.created = False
         self.resume = None
+        self.replace = bool(force)  # an existing output folder is replaced at the end (--force)
         output_folder(os.path.dirname(self.out), f"the output folder {self.out!r}")
         self.lock = OutputLock(self.out).acquire()
         try:
@@ -596,15 +655,22 @@ class CaseRun:
     def _check_folders(self, force, resume, warn):
         if os.path.isdir(self.out + ".old") and os.path.isdir(self.out):  # a replacement killed halfway
             shutil.rmtree(self.out + ".old", ignore_errors=True)
-        if os.path.exists(self.partial) and not has_checkpoint(self.partial):
+        damaged = damaged_checkpoint(self.partial)
+        if damaged is not None and (resume or not force):  # kept: the user decides (--force starts over)
+            raise CaseError(f"the checkpoint in {self.partial!r} is damaged: {damaged}; start over with --force")
+        if os.path.exists(self.partial) and not has_checkpoint(self.partial) and damaged is None:
             # a run killed (or failed) before its first checkpoint: nothing in it can be resumed
             _remove(self.partial)
             if resume:
                 raise CaseError(f"nothing to resume: the run that left {self.partial!r} was stopped before its first "
                                 f"checkpoint (the folder is removed now); run without --resume to start over")
             warn(f"removed {self.partial!r}, left by a run stopped before its first checkpoint")
+        if resume and not force and self._checkpoint_replaces():
+            self.replace = True  # the stopped run was started with --force: its resume replaces <out>/ too
+        if os.path.exists(self.out) and not os.path.isdir(self.out):
+            raise CaseError(f"the output folder {self.out!r} is a file, not a folder; choose another --output")
         if os.path.exists(self.out):
-            if not force:
+            if not self.replace:
                 raise CaseError(f"the output folder {self.out!r} exists; use --force to replace it or --output DIR")
             if not os.path.isdir(self.out) or not _is_run_folder(self.out):
                 raise CaseError(f"refusing to replace {self.out!r}: it is not a cfcontact output folder")
@@ -672,7 +738,7 @@ class CaseRun:
 
         def save(path, state):
             runner.display.clear()
-            save_checkpoint(self.partial, path, self.case, "checkpoint", state)
+            save_checkpoint(self.partial, path, self.case, "checkpoint", state, self.replace)
             runner.checkpoint_saved()
 
         t = time.perf_counter()
@@ -685,22 +751,26 @@ class CaseRun:
             raise
         if path.status == "stopped by callback" and runner.reason is not None:
             runner.display.clear()
-            save_checkpoint(self.partial, path, self.case, runner.reason, path.resume_state)
+            save_checkpoint(self.partial, path, self.case, runner.reason, path.resume_state, self.replace)
             raise Stopped(runner.reason, interrupted=runner.interrupted, resumable=path.resume_state is not None)
         self.timings["trace"] = time.perf_counter() - t
         runner.end(path)
         t = time.perf_counter()
-        save_traced(self.partial, path, self.case)
+        save_traced(self.partial, path, self.case, self.replace)
         self.timings["checkpoint"] = time.perf_counter() - t
         if runner.interrupted:  # Ctrl-C while the traced path was saved
             raise Stopped("interrupted (Ctrl-C) after tracing; the outputs are not written", interrupted=True)
         return path
 
-    def finish(self, path, warn: Callable = log.warning, system=None) -> list:
-        """Write the outputs into ``<out>.partial/``, drop the checkpoint, rename it to ``<out>/``."""
+    def finish(self, path, warn: Callable = log.warning, system=None, interrupted: Optional[Callable] = None) -> list:
+        """Write the outputs into ``<out>.partial/``, drop the checkpoint, rename it to ``<out>/``.
+        ``interrupted``: a callable asked between the outputs and before the checkpoint is dropped
+        (a Ctrl-C held back while a library such as VTK ran); when it answers True the writing
+        stops with KeyboardInterrupt and the checkpoint is kept."""
         saved = os.path.join(self.partial, CHECKPOINT_DIRS[0], "path")
         files = write_outputs(path, self.case, self.partial, self.timings, warn, system,
-                              saved=saved if self._traced_checkpoint() else None)
+                              saved=saved if self._traced_checkpoint() else None, interrupted=interrupted)
+        _go_on(interrupted)
         for name in CHECKPOINT_DIRS:
             shutil.rmtree(os.path.join(self.partial, name), ignore_errors=True)
         if os.path.isdir(self.out):
@@ -720,6 +790,15 @@ class CaseRun:
             raise CaseError(f"the checkpoint in {self.partial!r} belongs to another system (checksum {saved[:12]}..., "
                             f"this case's model {system.checksum()[:12]}...): it was written by another case or "
                             f"another cfcontact; start over with --force")
+
+    def _checkpoint_replaces(self) -> bool:
+        """Was the stopped run in ``<out>.partial/`` started with --force (its state.json's "replace")?"""
+        for name in CHECKPOINT_DIRS:
+            try:
+                return bool(read_json(os.path.join(self.partial, name, "state.json")).get("replace"))
+            except (OSError, ValueError, AttributeError):
+                continue
+        return False
 
     def _traced_checkpoint(self) -> bool:
         try:

@@ -41,13 +41,17 @@ import scipy.sparse as sp
 
 from cfcontact.errors import InputError
 from cfcontact.jsonio import blocking_file, holds_format, jsonable
-from cfcontact.ssnm import InactiveSets, Solution
+from cfcontact.options import METHODS
+from cfcontact.ssnm import STATE_NAMES, InactiveSets, Solution
 from cfcontact.system import ContactGeometry, ContactSystem, check_alpha
 
 #: Version 2 stores the branches in reference form (alpha_ref, Y_ref, dY) and the gap; version 1
 #: (Y1, Y2 at alpha = 0 and 1, no gap) still loads.
 FORMAT_VERSION = 2
 SET_NAMES = ("nu", "tp", "tm")  # which indicator of (17): normal, slip+, slip-
+#: Every status a path can have (a saved path with another one is refused on load)
+STATUSES = ("running", "completed", "stopped by callback", "stuck", "cycling", "closed_loop", "max_transitions",
+            "max_steps")
 
 
 def parameter_name(parameter: str) -> str:
@@ -915,11 +919,13 @@ def _check_meta(meta):
     _finite_number(meta, "rho", "")
     if not meta["rho"] > 0:
         raise _Bad(f"rho = {meta['rho']!r} must be > 0")
-    _need(meta, "method", str, "")
+    if _need(meta, "method", str, "") not in METHODS:
+        raise _Bad(f"method {meta['method']!r} is not one of {', '.join(map(repr, METHODS))}")
     _finite_number(meta, "alpha_start", "")
     _finite_number(meta, "alpha_end", "")
     _need(meta, "options", dict, "")
-    _need(meta, "status", str, "")
+    if _need(meta, "status", str, "") not in STATUSES:
+        raise _Bad(f"status {meta['status']!r} is not a path status ({', '.join(map(repr, STATUSES))})")
     _need(meta, "stats", dict, "")
     for key in ("branches", "transitions", "events"):
         _need(meta, key, list, "")
@@ -937,6 +943,10 @@ def _check_meta(meta):
         if sets.get("m") != m or not all(isinstance(sets.get(name), list) and all(
                 isinstance(i, int) and 0 <= i < m for i in sets[name]) for name in SET_NAMES):
             raise _Bad(f"branches[{k}].sets are not inactive sets of m = {m} nodes")
+        states = b.get("states")
+        if states is not None and not (isinstance(states, list) and len(states) == m
+                                       and all(isinstance(x, str) and x in STATE_NAMES for x in states)):
+            raise _Bad(f"branches[{k}].states are not {m} node states ({', '.join(map(repr, STATE_NAMES))})")
         if _need(b, "orientation", int, where) not in (-1, 1):
             raise _Bad(f"branches[{k}].orientation must be +1 or -1")
         _need(b, "points", list, where)
@@ -1060,8 +1070,15 @@ def validate_saved(meta, arrays, path):
             a = arrays[name]
             if a.size and (a.min() < 0 or a.max() >= npts):
                 raise InputError(f"{where}: array {name!r} refers to nodes outside 0..{npts - 1}")
+        cn = arrays["geometry_contact_nodes"]
+        if cn.size and (cn.min() < -1 or cn.max() >= npts):
+            raise InputError(f"{where}: array 'geometry_contact_nodes' refers to nodes outside 0..{npts - 1} "
+                             f"(or -1: a rigid master)")
         if len(arrays["geometry_cell_body"]) != len(arrays["geometry_cells"]):
             raise InputError(f"{where}: arrays 'geometry_cell_body' and 'geometry_cells' differ in length")
+        bad = np.setdiff1d(arrays["geometry_cell_body"], (1, 2))
+        if bad.size:
+            raise InputError(f"{where}: array 'geometry_cell_body' holds {int(bad[0])}; a cell's body is 1 or 2")
         for name in ("geometry_material", "geometry_obstacle"):  # (JSON text)
             if name in arrays:
                 try:

@@ -196,6 +196,66 @@ def test_non_matching_msh_case(tmp_path):
     assert np.allclose(system.gap, ref.gap, rtol=0, atol=1e-14)
 
 
+MSH_SCRIPT = """
+import sys, gmsh
+gmsh.initialize(); gmsh.option.setNumber("General.Terminal", 0); gmsh.model.add("m")
+occ = gmsh.model.occ
+r1, r2 = occ.addRectangle(0, 0, 0, 3, 1), occ.addRectangle(0, -1, 0, 3, 1)
+occ.synchronize()
+if sys.argv[2] == "unnamed":  # the tag convention's numbers, no names
+    gmsh.model.addPhysicalGroup(2, [r1], 1); gmsh.model.addPhysicalGroup(2, [r2], 2)
+    for body, r, tags in ((1, r1, (10, 12, 14)), (2, r2, (20, 22))):
+        curves = [c for _, c in gmsh.model.getBoundary([(2, r)], oriented=False)]
+        for tag, c in zip(tags, curves):
+            gmsh.model.addPhysicalGroup(1, [c], tag)
+gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
+gmsh.model.mesh.generate(2)
+gmsh.write(sys.argv[1]); gmsh.finalize()
+"""
+
+
+@pytest.mark.parametrize("how,words", [
+    ("unnamed", ["[geometry] file", "physical groups without names", "10 (1-D)", "1 (2-D)", "none is named",
+                 "body1=1", "contact1=10", "Tag convention"]),
+    ("none", ["[geometry] file", "has no physical groups", "body1=1", "contact1=10"]),
+])
+def test_msh_without_named_physical_groups(tmp_path, how, words):
+    """A .msh whose groups are numbered but unnamed, or that has no physical groups at all: one
+    message about the file (not an unknown clamp tag, nor a slave the case never set)."""
+    msh = tmp_path / "m.msh"
+    subprocess.run([sys.executable, "-c", MSH_SCRIPT, str(msh), how], check=True, timeout=120)
+    text = ('[geometry]\nkind = "msh"\nfile = "m.msh"\n[loads]\nclamp = [14, 22]\n[loads.f1]\n12 = [0.0, -1e8]\n'
+            '[loads.f2]\n12 = [1e8, -1e7]\n')
+    with pytest.raises(case.CaseError) as info:
+        case.validate_case(tomllib.loads(text), str(tmp_path))
+    msg = str(info.value)
+    assert "slave" not in msg and "clamp" not in msg, msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_an_empty_obstacle_table_says_kind_is_missing_and_alpha_end_of_a_friction_path_warns():
+    with pytest.raises(case.CaseError) as info:
+        case.validate_case(tomllib.loads('[geometry]\nkind = "block_on_foundation"\n[contact.obstacle]\n'))
+    assert str(info.value).startswith("[contact.obstacle] kind is missing") and "None" not in str(info.value)
+    raw = tomllib.loads('[geometry]\nkind = "two_blocks"\n[contact]\nfriction = 1.0\n[path]\nparameter = "friction"\n'
+                        'method = "exact"\nalpha_end = 0.5\ntree = true\n')
+    assert case.validate_case(raw)["_warnings"] == [
+        f'[path] {k}: used by paths over alpha only; ignored with parameter = "friction"' for k in ("alpha_end", "tree")]
+
+
+def test_too_large_prescribed_displacements_name_loads_dirichlet():
+    """Prescribed displacements whose loads K u_D overflow are named as such ([loads.dirichlet]),
+    not taken for too large tractions or body forces."""
+    raw = _example("cylinder", **SMALL_GEOMETRY["cylinder"])
+    raw["loads"]["dirichlet"]["top1"] = {"x": 0.0, "y": [0.0, -1e200]}
+    with pytest.raises(case.CaseError) as info:
+        case.build_system(raw)
+    msg = str(info.value)
+    assert msg.startswith("[loads.dirichlet]: the prescribed displacements") and "too large" in msg, msg
+    assert "tractions" not in msg and "\n" not in msg
+
+
 BAD_CONTACT = [
     ('[contact]\npairing = "edge"\n', ['[contact] pairing', '"node" or "segment"', "edge"]),
     ('[contact]\npairing = "segment"\nsearch_distance = 0.0\n', ["[contact] search_distance", "> 0", "0.0"]),

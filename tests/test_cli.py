@@ -496,6 +496,128 @@ def test_resume_checks(tmp_path, capsys):
     assert not (tmp_path / "case_out.partial").exists()
 
 
+QUICK = SMALL.replace("[output]\n", "[output]\nplot = false\nrender_panel = false\n")
+
+
+def test_the_printed_resume_command_of_a_forced_run_works(tmp_path, capsys):
+    """A run that replaces an existing output (--force) and is stopped prints "continue with:
+    cfcontact run --resume ..."; that command, run literally, completes the run and replaces the
+    output as the --force run would have (the checkpoint records the --force)."""
+    import shlex
+
+    case = _write(tmp_path, QUICK)
+    out = str(tmp_path / "G")
+    assert cli.main(["run", case, "-o", out]) == 0
+    first = os.path.getmtime(os.path.join(out, "summary.json"))
+    capsys.readouterr()
+    assert cli.main(["run", case, "-o", out, "--force", "--time-limit", "0.001"]) == 3
+    printed = [line for line in capsys.readouterr().out.splitlines() if line.startswith("continue with: ")]
+    assert len(printed) == 1, printed
+    command = shlex.split(printed[0][len("continue with: "):])
+    assert command[:3] == ["cfcontact", "run", "--resume"]
+    assert json.loads((tmp_path / "G.partial" / "checkpoint" / "state.json").read_text())["replace"] is True
+    assert cli.main(command[1:]) == 0, capsys.readouterr().err
+    assert not (tmp_path / "G.partial").exists() and os.path.getmtime(os.path.join(out, "summary.json")) > first
+    assert SolutionPath.load(os.path.join(out, "path")).status == "completed"
+    # a stopped run that was not started with --force still refuses to replace an existing output
+    assert cli.main(["run", case, "-o", str(tmp_path / "H"), "--time-limit", "0.001", "-q"]) == 3
+    shutil.copytree(out, tmp_path / "H")
+    assert cli.main(["run", case, "-o", str(tmp_path / "H"), "--resume", "-q"]) == 2
+    assert "exists; use --force" in capsys.readouterr().err
+
+
+def test_a_path_that_ends_at_max_steps_exits_4(tmp_path, capsys):
+    """[path] max_steps cuts the path short like max_transitions: the outputs are written, a warning
+    names the status, exit code 4 (not a whole result)."""
+    case = _write(tmp_path, QUICK + '[path]\nmethod = "seed"\nmax_steps = 3\n')
+    assert cli.main(["run", case]) == 4
+    err = capsys.readouterr().err
+    assert "status 'max_steps'" in err, err
+    assert json.loads((tmp_path / "case_out" / "summary.json").read_text())["summary"]["status"] == "max_steps"
+
+
+def test_empty_output_names_and_a_file_as_output_folder(tmp_path, capsys):
+    """-o "" is refused (exit 2), not read as "no -o" (the default folder written silently); an
+    existing regular file as run's or map's output folder is named a file, not an existing folder."""
+    case = _write(tmp_path, QUICK)
+    (tmp_path / "F").write_text("keep")
+    for command, words in ((["run", case, "-o", ""], ["-o/--output", "empty"]),
+                           (["map", case, "-o", ""], ["-o/--output", "empty"]),
+                           (["plot", str(tmp_path), "-o", ""], ["-o/--output", "empty"]),
+                           (["render", str(tmp_path), "--animation", ""], ["--animation", "empty"]),
+                           (["run", case, "-o", str(tmp_path / "F")], ["'" + str(tmp_path / "F") + "'",
+                                                                       "is a file, not a folder"]),
+                           (["run", case, "-o", str(tmp_path / "F"), "--force"], ["is a file, not a folder"]),
+                           (["map", case, "-o", str(tmp_path / "F")], ["is a file, not a folder"])):
+        assert cli.main(command) == 2, command
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "exists" not in err, err
+        for w in words:
+            assert w in err, (w, err)
+    assert sorted(os.listdir(tmp_path)) == ["F", "case.toml"] and (tmp_path / "F").read_text() == "keep"
+
+
+def test_plot_multiplicity_refuses_component_and_zoom(tmp_path, capsys):
+    """--multiplicity plots the number of solutions: a --component or --zoom with it is refused
+    (exit 2, one line naming the flag), not silently ignored; nothing is written."""
+    for extra, flag in ((["--component", "lam_n:3"], "--component"), (["--zoom", "0.1", "0.2"], "--zoom")):
+        assert cli.main(["plot", str(tmp_path), "--multiplicity", *extra, "-o", str(tmp_path / "m.png")]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and f"{flag}: not with --multiplicity" in err, err
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_outputs_are_written_keeps_the_checkpoint(tmp_path):
+    """SIGINT while the panel is rendered (VTK: a KeyboardInterrupt raised in there could be lost,
+    and the run ended "completed"): exit 130, the traced checkpoint kept, no output folder;
+    --resume then writes the outputs.  The signal is sent when the run logs that it renders."""
+    case = _write(tmp_path, SMALL.replace("[output]\n", "[output]\nplot = false\n"))
+    proc = subprocess.Popen([sys.executable, "-m", "cfcontact", "run", "-v", case], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=_env(), cwd=ROOT)
+    lines = []
+    for line in proc.stdout:
+        lines.append(line)
+        if "writing" in line and "panel.png" in line:
+            proc.send_signal(signal.SIGINT)
+            break
+    rest, _ = proc.communicate(timeout=300)
+    text = "".join(lines) + rest
+    assert proc.returncode == 130, text
+    assert "Traceback" not in text and "cfcontact: completed" not in text, text
+    partial = tmp_path / "case_out.partial"
+    assert not (tmp_path / "case_out").exists() and os.listdir(partial) == ["checkpoint"], text
+    assert json.loads((partial / "checkpoint" / "state.json").read_text())["traced"] is True
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert not partial.exists() and (tmp_path / "case_out" / "panel.png").is_file()
+
+
+def test_ctrl_c_that_a_library_swallows_while_the_outputs_are_written(tmp_path, monkeypatch, capsys):
+    """A library that catches the KeyboardInterrupt of a Ctrl-C while it works (as C libraries with
+    Python callbacks can) no longer makes the run end "completed": while the outputs are written a
+    Ctrl-C only sets a flag, asked before each output: exit 130, the checkpoint kept, resumable."""
+    from cfcontact import plotting
+
+    save = plotting.save_figure
+
+    def swallowing_save(fig, fn, *a, **k):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:  # the library's own handling
+            pass
+        return save(fig, fn, *a, **k)
+
+    monkeypatch.setattr(plotting, "save_figure", swallowing_save)
+    case = _write(tmp_path, SMALL.replace("[output]\n", "[output]\nrender_panel = false\n"))
+    assert cli.main(["run", case, "-q"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    partial = tmp_path / "case_out.partial"
+    assert not (tmp_path / "case_out").exists() and os.listdir(partial) == ["checkpoint"]
+    monkeypatch.setattr(plotting, "save_figure", save)
+    assert cli.main(["run", case, "-q", "--resume"]) == 0
+    assert (tmp_path / "case_out" / "path.png").is_file() and not partial.exists()
+
+
 def test_failure_removes_partial_folder(tmp_path, monkeypatch, capsys):
     def boom(*a, **k):
         raise RuntimeError("boom")

@@ -451,7 +451,9 @@ def test_export_cli(run_dir, tmp_path, capsys):
     path = SolutionPath.load(run_dir / "path")
     out = tmp_path / "e.xdmf"
     assert cli.main(["export", str(run_dir), "-o", str(out)]) == 0
-    k, a = path.max_multiplicity()
+    from cfcontact.run import default_alpha  # (render's default: the alpha of largest multiplicity, else the end)
+
+    a = default_alpha(path)
     assert [float(g.find("Information").get("Value")) for g in _grids(out)] == [s.alpha for s in path.solutions_at(a)]
     assert cli.main(["export", str(run_dir), "--alpha", "0.25", "-o", str(out)]) == 0
     g = _grids(out)
@@ -478,6 +480,41 @@ def test_export_cli(run_dir, tmp_path, capsys):
     assert cli.main(["export", str(tmp_path / "lumped"), "-o", str(bad)]) == 2
     assert "no geometry" in capsys.readouterr().err and not bad.exists()
     assert not glob.glob(str(tmp_path / ".*.tmp"))
+
+
+ONE_SOLUTION = """
+[geometry]
+kind = "two_blocks"
+nx = 6
+ny = 2
+[contact]
+friction = 1.5
+[output]
+plot = false
+render_panel = false
+xdmf = true
+"""
+
+
+def test_export_default_alpha_is_renders(tmp_path, capsys):
+    """export without --alpha writes the solutions at render's default alpha (run.default_alpha):
+    on a path with one solution everywhere, its last point, as the run's own solutions.xdmf --
+    not the middle of its first interval (summary.json's alpha_of_max)."""
+    from cfcontact.run import default_alpha
+
+    case = tmp_path / "case.toml"
+    case.write_text(ONE_SOLUTION)
+    assert cli.main(["run", "-q", str(case)]) == 0
+    out = tmp_path / "case_out"
+    path = SolutionPath.load(out / "path")
+    assert path.max_multiplicity()[0] == 1 and default_alpha(path) == path.alphas[-1]
+    exported = tmp_path / "e.xdmf"
+    assert cli.main(["export", str(out), "-o", str(exported)]) == 0
+    alphas = [float(g.find("Information").get("Value")) for g in _grids(exported)]
+    assert alphas == [float(g.find("Information").get("Value")) for g in _grids(out / "solutions.xdmf")]
+    assert alphas == [float(path.alphas[-1])]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["summary"]["alpha_of_max"] != path.alphas[-1]
 
 
 @pytest.mark.parametrize("key, value", [("stress", '"yes"'), ("xdmf", "1")])

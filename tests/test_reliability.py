@@ -93,7 +93,15 @@ BAD_RUNS = [
      ["[loads.f1] ['top1=12']", "x in [5, 6] misses the piece", "x in [0, 3]"]),
     ("dirichlet nan", GEO + "[loads.dirichlet]\ntop1 = {y = nan}\n", [], ["[loads.dirichlet] top1.y", "finite", "nan"]),
     ("rho 1e200", GEO + "[contact]\nrho = 1e200\n", [], ["[contact] rho", "1e+100"]),
-    ("tol negative", GEO + "[path]\ntol = -1.0\n", [], ["[path] tol", "> 0"]),
+    ("tol negative", GEO + "[path]\ntol = -1.0\n", [], ["[path] tol", "(0, 0.01]", "-1.0"]),
+    ("tol 1", GEO + "[path]\ntol = 1.0\n", [], ["[path] tol", "(0, 0.01]", "1.0"]),
+    ("friction 1e200", GEO + "[contact]\nfriction = 1e200\n", [], ["[contact] friction", "at most 1e+06", "1e+200"]),
+    ("friction list entry 2e6", GEO + "[contact]\nfriction = [0.5, 2e6]\n", [],
+     ["[contact] friction", "at most 1e+06", "2000000.0"]),
+    ("friction_end 1e7", GEO + '[path]\nparameter = "friction"\nfriction_end = 1e7\n', [],
+     ["[path] friction_end", "at most 1e+06"]),
+    ("friction_start 1e7", GEO + '[path]\nparameter = "friction"\nfriction_start = 1e7\nfriction_end = 1.0\n', [],
+     ["[path] friction_start", "at most 1e+06"]),
     ("friction path at F = 0", GEO + '[path]\nparameter = "friction"\n', [], ["[path]", "friction_end > 0"]),
     ("stop-at-alpha outside", GEO, ["--stop-at-alpha", "2"], ["--stop-at-alpha 2", "from alpha = 0 to 1"]),
     ("stop-at-alpha at the start", GEO, ["--stop-at-alpha", "0"], ["--stop-at-alpha 0", "after its start"]),
@@ -179,9 +187,15 @@ def test_outputs_that_cannot_be_written_exit_2(tmp_path, capsys, stopped):
                            (["plot", done, "-o", str(tmp_path / "afile" / "x.png")], ["-o", "is a file, not a folder"]),
                            (["export", done, "-o", str(tmp_path / "d.xdmf")], ["-o", "is a folder"]),
                            (["map", case, "-o", str(tmp_path / "afile" / "m")], ["-o", "is a file, not a folder"]),
-                           (["map", case, "-o", str(tmp_path / "afile"), "--force"], ["not a cfcontact map folder"]),
-                           (["map", case, "-o", case, "--force"], ["not a cfcontact map folder"]),
-                           (["bench", "--output", str(tmp_path / "afile")], ["--output", "is a file"])):
+                           (["map", case, "-o", str(tmp_path / "afile"), "--force"], ["is a file, not a folder"]),
+                           (["map", case, "-o", case, "--force"], ["is a file, not a folder"]),
+                           (["bench", "--output", str(tmp_path / "afile")], ["--output", "is a file"]),
+                           # a folder that takes no new files (/proc): checked before the work, the path named
+                           (["plot", done, "-o", "/proc/x.png"], ["-o: cannot write '/proc/x.png'"]),
+                           (["render", done, "-o", "/proc/x.png"], ["-o: cannot write '/proc/x.png'"]),
+                           (["render", done, "--animation", "/proc/a.gif"], ["--animation: cannot write '/proc/a.gif'"]),
+                           (["export", done, "-o", "/proc/x.xdmf"], ["-o: cannot write '/proc/x.xdmf'"]),
+                           (["map", case, "-o", "/proc/mapx"], ["-o: cannot write '/proc/mapx'"])):
         assert cli.main(command) == 2, command
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and "Errno" not in err, err
@@ -411,6 +425,18 @@ CORRUPTIONS = [
      lambda fn: _json_edit(fn, lambda d: d["transitions"][0].update(alpha="x")), ["path.json", "'alpha'"]),
     ("fields.npz material", "fields.npz",
      lambda fn: _npz_edit(fn, lambda a: a.update(geometry_material=np.array("not json"))), ["geometry_material", "JSON"]),
+    ("fields.npz contact node", "fields.npz",
+     lambda fn: _npz_edit(fn, lambda a: a["geometry_contact_nodes"].__setitem__((0, 0), 99999)),
+     ["fields.npz", "'geometry_contact_nodes'", "outside"]),
+    ("fields.npz cell body", "fields.npz", lambda fn: _npz_edit(fn, lambda a: a["geometry_cell_body"].__setitem__(0, 7)),
+     ["fields.npz", "'geometry_cell_body'", "holds 7", "1 or 2"]),
+    ("path.json status", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(status="weird")),
+     ["path.json", "status 'weird'", "'completed'"]),
+    ("path.json method", "path.json", lambda fn: _json_edit(fn, lambda d: d.update(method="magic")),
+     ["path.json", "method 'magic'", "'seed', 'exact'"]),
+    ("path.json states", "path.json",
+     lambda fn: _json_edit(fn, lambda d: d["branches"][0].update(states=["bogus"] * d["m"])),
+     ["path.json", "branches[0].states", "'slip+'"]),
 ]
 
 
@@ -468,6 +494,27 @@ def test_corrupted_checkpoint_state_exit_2(tmp_path, capsys, stopped, label, how
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     for w in words:
         assert w in err, (w, err)
+
+
+def test_a_checkpoint_without_state_json_is_damaged_and_kept(tmp_path, capsys, stopped):
+    """A checkpoint folder that holds path/ but no state.json is damage, not a run stopped before its
+    first checkpoint: --resume (and a run without --force) names the missing file and keeps the
+    folder; --force starts over.  An empty checkpoint/ folder is no checkpoint: removed."""
+    case = _write(tmp_path, TINY)
+    partial = tmp_path / "case_out.partial"
+    shutil.copytree(stopped[1], partial)
+    os.remove(partial / "checkpoint" / "state.json")
+    for flags in (["--resume"], []):
+        assert cli.main(["run", case, "-q", *flags]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "damaged" in err and "state.json is missing" in err \
+            and "--force" in err and "removed" not in err, err
+        assert (partial / "checkpoint" / "path" / "path.json").is_file()
+    assert cli.main(["run", case, "-q", "--force"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["case.toml", "case_out"]
+    (partial / "checkpoint").mkdir(parents=True)
+    assert cli.main(["run", case, "-q", "--resume"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err and not partial.exists()
 
 
 def test_another_cases_checkpoint_is_refused(tmp_path, capsys, stopped):
