@@ -20,12 +20,12 @@ from typing import Optional
 
 import numpy as np
 
-from cfcontact.errors import ConvergenceError, InputError
+from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
 from cfcontact.options import AlphaSpan, PathOptions
 from cfcontact.solution_path import SET_NAMES, PathEvent, PathPoint, SolutionPath, Transition
 from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point
-from cfcontact.start import (branch_endpoints, consistent_up_to_ties, indicator_ties, oriented_start, resume_parts,
-                             start_point)
+from cfcontact.start import (branch_endpoints, consistent_up_to_ties, failed_start, indicator_ties, oriented_start,
+                             resume_parts, start_point)
 from cfcontact.stepper import Stepper
 
 log = logging.getLogger(__name__)
@@ -91,8 +91,8 @@ class SeedStepper(Stepper):
             start = start_point(system, alpha, y0, self.opts, self.solver)
             self.start = {"start": "ssnm"}
             return start
-        except ConvergenceError as exc:
-            if y0 is not None:
+        except (ConvergenceError, SingularSystemError) as exc:
+            if y0 is not None or not failed_start(exc):
                 raise
             failure = exc
         from cfcontact.exact import reach_start
@@ -113,7 +113,9 @@ class SeedStepper(Stepper):
         method's :func:`~cfcontact.exact.reach_start`; ConvergenceError when neither finds one."""
         try:
             return start_point(self.system, alpha, None, self.opts, self.solver).sets
-        except ConvergenceError:
+        except (ConvergenceError, SingularSystemError) as exc:
+            if not failed_start(exc):
+                raise
             from cfcontact.exact import reach_start
 
             return reach_start(self.system, alpha, self.path, self.opts, monitor)[0]

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from cfcontact.errors import ConvergenceError, InputError
+from cfcontact.errors import ConvergenceError, InputError, SingularSystemError
 from cfcontact.options import TIE_RTOL, AlphaSpan, PathOptions
 from cfcontact.solution_path import SolutionPath
 from cfcontact.ssnm import InactiveSets, Solution, get_solver, indicators, is_fixed_point, ssnm
@@ -39,12 +39,13 @@ def start_point(system, alpha, y0, opts, solver) -> Solution:
     problem where SSNM is robust), from the solution with every node open (u = K^-1 f), and
     with other augmentation parameters rho (START_RHO_FACTORS): SSNM's convergence depends on
     rho, the solutions of (1)-(3) do not.  The first that converges is returned, with its sets
-    taken for the system's own rho; ConvergenceError of the first attempt when none does."""
+    taken for the system's own rho; the first attempt's error (ConvergenceError, or a J(Z) the
+    backend could not factor: SingularSystemError, :func:`failed_start`) when none does."""
     tol, max_iter = opts.tol, opts.max_iter
     try:
         return ssnm(system, alpha, y0=y0, tol=tol, max_iter=max_iter, solver=solver)
-    except ConvergenceError as first:
-        if y0 is not None:
+    except (ConvergenceError, SingularSystemError) as first:
+        if y0 is not None or not failed_start(first):
             raise
         failure = first
 
@@ -64,9 +65,19 @@ def start_point(system, alpha, y0, opts, solver) -> Solution:
         log.info("SSNM from 0 failed at alpha=%g; trying %s", alpha, what)
         try:
             return attempt()
-        except ConvergenceError:
+        except (ConvergenceError, SingularSystemError) as exc:
+            if not failed_start(exc):
+                raise
             continue
     raise failure
+
+
+def failed_start(exc) -> bool:
+    """Is ``exc`` a start that failed (SSNM did not converge, or a J(Z) on its way could not be
+    factored: at a stiffness ratio of 1e6 MUMPS can find the all-sticking J(Z) singular), after
+    which another start is tried, rather than a bad model (K not positive definite)?"""
+    return isinstance(exc, ConvergenceError) or (isinstance(exc, SingularSystemError)
+                                                 and not isinstance(exc, InputError))
 
 
 def indicator_ties(system, y, rtol=TIE_RTOL):
