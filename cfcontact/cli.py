@@ -211,6 +211,19 @@ def _warn(args, text):
         print(f"cfcontact: warning: {text}", file=sys.stderr, flush=True)
 
 
+def _note_from_handler(text):
+    """Write ``text`` to stderr from a signal handler: on the file descriptor, not through
+    sys.stderr, whose buffered writer may be in the middle of a write (a log line) when the signal
+    comes -- Python then raises "reentrant call" inside logging, which prints a traceback.  A
+    stream without a descriptor (a test's capture) is written as usual."""
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):  # (io.UnsupportedOperation: a capture object)
+        print(text, end="", file=sys.stderr, flush=True)
+        return
+    os.write(fd, text.encode(getattr(sys.stderr, "encoding", None) or "utf-8", "replace"))
+
+
 @contextlib.contextmanager
 def _sigint(runner, progress, note="stopping at the next point (checkpoint follows); Ctrl-C again to abort"):
     """First Ctrl-C: stop cleanly at the next accepted point (while the outputs are written: before
@@ -225,8 +238,9 @@ def _sigint(runner, progress, note="stopping at the next point (checkpoint follo
             signal.signal(signal.SIGINT, signal.default_int_handler)
             raise KeyboardInterrupt
         runner.interrupt()
-        progress.clear()
-        print(f"\ncfcontact: {note}", file=sys.stderr, flush=True)
+        erase = "\r\x1b[2K" if progress.shown else ""
+        progress.shown = False
+        _note_from_handler(f"{erase}\ncfcontact: {note}\n")
 
     old = signal.signal(signal.SIGINT, handler)
     try:

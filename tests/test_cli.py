@@ -592,6 +592,27 @@ def test_ctrl_c_while_the_outputs_are_written_keeps_the_checkpoint(tmp_path):
     assert not partial.exists() and (tmp_path / "case_out" / "panel.png").is_file()
 
 
+def test_the_ctrl_c_note_is_written_past_sys_stderr(capfd):
+    """The first Ctrl-C's note is written on stderr's descriptor, not through sys.stderr: a signal
+    that comes while a log line is being written there made Python raise "reentrant call" inside
+    logging, which printed a traceback (seen on Debian 13 when the SIGINT met the "writing
+    panel.png" line)."""
+    import io
+
+    class Busy(io.TextIOWrapper):  # a stderr whose writer is busy: any write through it fails
+        def write(self, text):
+            raise RuntimeError("reentrant call inside <_io.BufferedWriter name='<stderr>'>")
+
+    busy = Busy(io.BufferedWriter(io.FileIO(os.dup(2), "w")))
+    real = sys.stderr
+    sys.stderr = busy
+    try:
+        cli._note_from_handler("\ncfcontact: stopping\n")
+    finally:
+        sys.stderr = real
+    assert "cfcontact: stopping" in capfd.readouterr().err
+
+
 def test_ctrl_c_that_a_library_swallows_while_the_outputs_are_written(tmp_path, monkeypatch, capsys):
     """A library that catches the KeyboardInterrupt of a Ctrl-C while it works (as C libraries with
     Python callbacks can) no longer makes the run end "completed": while the outputs are written a
