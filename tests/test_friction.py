@@ -382,3 +382,23 @@ def test_a_map_row_that_cannot_be_traced_to_its_end_is_unknown():
     assert res.status[1] == "stuck" and (res.counts[1] == -1).all()
     with pytest.raises(InputError, match="alpha_range must be two different"):
         critical_friction_path(system, (0.5, 0.5), F_max=60.0)
+
+
+def test_friction_path_points_formed_from_their_own_multipliers(tmp_path):
+    """An inclined non-matching pair (body 2 softer by 283, F from 0 to 30 at alpha = 0.4741): a
+    point's u was read off its branch's form u0 + U mu(F), whose columns U are differences of
+    displacements; as mu grew along a branch the points lost digits, up to 2.7e-9 from (1)-(3) at
+    F = 0.99 (SSNM there: 5e-13).  Formed from the point's own multipliers, u = K^-1 (f - B^T lam),
+    they are within 1e-10, as the alpha-paths of the model; a saved and reloaded path keeps them."""
+    system = cfcontact.two_blocks(nx=21, nx2=26, ny=9, height2=0.2809, length=4.741, height=0.984, angle=-49.72,
+                                  cell="triangle", E={"body1": 5.761e10, "body2": 2.033e8}, nu=0.01497,
+                                  friction=3.0, pairing="segment",
+                                  tractions1={"top1": (2845000.0, -11880000.0)},
+                                  tractions2={"top1": (63390000.0, -69310000.0), "right1": (-7091000.0, 9646000.0),
+                                              "bottom2": (1167000.0, 3874000.0)})
+    path = trace_friction_path(system, 0.4741, 0.0, 30.0)
+    assert path.status == "completed" and len(path.transitions) >= 20
+    assert worst_residual_friction(system, path) < 1e-10
+    path.save(tmp_path / "fp")
+    again = load_path(tmp_path / "fp")
+    assert np.array_equal(again.ys, path.ys) and worst_residual_friction(system, again) < 1e-10
