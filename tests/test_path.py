@@ -162,6 +162,39 @@ def test_start_point_when_ssnm_from_zero_fails(m, seed):
         assert path.status == "completed", (method, path.status)
 
 
+def test_a_jz_the_backend_cannot_factor_is_a_failed_start_not_a_crash():
+    """Where the backend cannot factor one J(Z) of SSNM's way (MUMPS at a stiffness ratio of 1e6:
+    SingularSystemError), start_point tries its next start, as after a ConvergenceError; an error
+    of the model (K not positive definite, an InputError too) still stops it."""
+    from cfcontact.errors import NotPositiveDefiniteError, SingularSystemError
+    from cfcontact.path import PathOptions, start_point
+    from cfcontact.ssnm import get_solver
+
+    system = random_system(4, 7, friction=0.5)
+    solver = get_solver(system)
+    calls = []
+
+    class Refusing:  # the backend, refusing the all-sticking J(Z) (SSNM's first iterate from 0)
+        def __getattr__(self, name):
+            return getattr(solver, name)
+
+        def solve(self, Z, f):
+            calls.append(Z)
+            if not (Z.nu.any() or Z.tp.any() or Z.tm.any()):
+                raise SingularSystemError("J(Z) could not be factored")
+            return solver.solve(Z, f)
+
+    sol = start_point(system, 0.0, None, PathOptions(), Refusing())
+    assert len(calls) > 1 and cfcontact.verify(system, sol.y, 0.0).ok(1e-10)
+
+    class NotPD(Refusing):
+        def solve(self, Z, f):
+            raise NotPositiveDefiniteError("K is not positive definite")
+
+    with pytest.raises(NotPositiveDefiniteError):
+        start_point(system, 0.0, None, PathOptions(), NotPD())
+
+
 def test_with_rho():
     from cfcontact.lumped import one_node
 
