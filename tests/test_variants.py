@@ -263,9 +263,11 @@ def test_an_apex_between_branches_referenced_far_from_it_is_stored_as_zero():
 def test_a_seed_start_whose_sticking_jz_mumps_cannot_factor_takes_the_exact_start():
     """Body 2 stiffer by 1e6: Debian 12's MUMPS finds the all-sticking J(Z) of SSNM's first iterate
     singular (Debian 13's factors it, and SSNM does not converge), and the seed method's start
-    raised SingularSystemError.  That is one more start that failed: the next ones are tried, here
-    down to the exact method's (from the frictionless solution), and the seed path then gives the
-    exact path's set changes (same branches), its points within 1e-13."""
+    raised SingularSystemError.  That is one more start that failed: the next ones are tried, on
+    Debian 12 down to the exact method's (from the frictionless solution), and the seed path then
+    gives the exact path's set changes (same branches), its points within 1e-13.
+    (test_path.py::test_a_jz_the_backend_cannot_factor_is_a_failed_start_not_a_crash makes the
+    backend refuse that J(Z) on every platform.)"""
     system = cfcontact.two_blocks(nx=7, nx2=29, ny=4, ny2=7, length=4.739, height=1.458, cell="quadrilateral",
                                   E={"body1": 5.612e10, "body2": 5.612e16}, nu=0.4187, plane="stress", friction=3.0,
                                   pairing="segment", slave="contact2",
@@ -279,8 +281,9 @@ def test_a_seed_start_whose_sticking_jz_mumps_cannot_factor_takes_the_exact_star
         cfcontact.ssnm(system, 0.0)  # (the PETSc DirNeuSolver: J(Z) by MUMPS)
     exact = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
     seed = cfcontact.trace_path(system, 0.0, 1.0, method="seed")
-    assert seed.status == exact.status == "completed" and seed.stats["start"] == exact.stats["start"] == "frictionless"
-    assert [e.kind for e in seed.events] == ["start_reached"]
+    assert seed.status == exact.status == "completed" and exact.stats["start"] == "frictionless"
+    # (Debian 12: the exact method's start, an event says so; Debian 13: SSNM from a restart)
+    assert (seed.stats["start"], [e.kind for e in seed.events]) in (("frictionless", ["start_reached"]), ("ssnm", []))
     assert compare_paths(seed, exact, system.friction_vector)["same_set_changes"]
     assert max(cfcontact.verify(system, y, a).worst() for a, y in seed.iter_points()) < 1e-13
 
