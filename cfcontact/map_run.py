@@ -18,6 +18,7 @@ import numpy as np
 
 from cfcontact.case import CaseError, build_system
 from cfcontact.jsonio import holds_format
+from cfcontact.run import replaceable_output
 
 __all__ = ["map_case", "DEFAULT_POINTS"]
 
@@ -44,14 +45,7 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
     else:
         stem = os.path.splitext(os.path.basename(case["_file"]))[0]
         out = os.path.join(os.path.dirname(case["_file"]), f"{stem}_map")
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise CaseError(f"the output folder {out!r} is a file, not a folder; choose another --output")
-    if os.path.exists(out):
-        if not force:
-            raise CaseError(f"the output folder {out!r} exists; use --force to replace it or --output DIR")
-        if not _is_map_folder(out):
-            raise CaseError(f"refusing to replace {out!r}: it is not a cfcontact map folder (no map.json); "
-                            "choose another --output")
+    replaceable_output(out, force, _is_map_folder, "a cfcontact map folder (no map.json); choose another --output")
     F_lo, F_hi = friction_range if friction_range is not None else default_friction_range(case)
     if not (0 <= F_lo < F_hi and np.isfinite(F_hi)):
         raise CaseError(f"--friction-range: need 0 <= F0 < F1, got {F_lo} {F_hi}")

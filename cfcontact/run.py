@@ -53,7 +53,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
            "has_checkpoint", "write_outputs", "panel_solutions", "default_alpha", "resolve_saved", "saved_material", "load_saved_path",
-           "parameter_label", "output_folder", "RUN_FORMAT",
+           "parameter_label", "output_folder", "replaceable_output", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
 RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
@@ -578,6 +578,20 @@ def output_folder(folder, what, flag=None) -> str:
     return folder
 
 
+def replaceable_output(out, replace, ours, what):
+    """CaseError unless the output folder ``out`` may be written: absent, or, with ``replace``
+    (--force), a folder that ``ours(out)`` recognises as one cfcontact wrote (``what`` names
+    that kind in the message).  A file standing there is named a file.  (run's and map's outputs.)"""
+    if not os.path.exists(out):
+        return
+    if not os.path.isdir(out):
+        raise CaseError(f"the output folder {out!r} is a file, not a folder; choose another --output")
+    if not replace:
+        raise CaseError(f"the output folder {out!r} exists; use --force to replace it or --output DIR")
+    if not ours(out):
+        raise CaseError(f"refusing to replace {out!r}: it is not {what}")
+
+
 def _is_run_folder(d):
     return holds_format(d, "summary.json", RUN_FORMAT, empty=True)
 
@@ -667,13 +681,7 @@ class CaseRun:
             warn(f"removed {self.partial!r}, left by a run stopped before its first checkpoint")
         if resume and not force and self._checkpoint_replaces():
             self.replace = True  # the stopped run was started with --force: its resume replaces <out>/ too
-        if os.path.exists(self.out) and not os.path.isdir(self.out):
-            raise CaseError(f"the output folder {self.out!r} is a file, not a folder; choose another --output")
-        if os.path.exists(self.out):
-            if not self.replace:
-                raise CaseError(f"the output folder {self.out!r} exists; use --force to replace it or --output DIR")
-            if not os.path.isdir(self.out) or not _is_run_folder(self.out):
-                raise CaseError(f"refusing to replace {self.out!r}: it is not a cfcontact output folder")
+        replaceable_output(self.out, self.replace, _is_run_folder, "a cfcontact output folder")
         if resume:
             if not os.path.isdir(self.partial):
                 raise CaseError(f"nothing to resume: no stopped run left {self.partial!r}; run without --resume")
