@@ -24,7 +24,8 @@ Conventions (DESIGN.md): n is the outer normal of body 1, t = (-n_y, n_x), and
   plane through the contact boundary: ``fixed``) takes its normal along its free component
   (:func:`roller_normals`).
 * :class:`Line`, :class:`Circle`: rigid obstacles given analytically, master of a single body
-  (:func:`obstacle_pairing`); their rows involve the slave body's DOFs only.
+  (:func:`obstacle_pairing`); their rows involve the slave body's DOFs only, along the
+  obstacle's own normal at the nearest point, with the signed distance as the gap.
 
 Slave nodes whose ray misses the master boundary, meets only its back, or meets it farther than
 ``search_distance`` are left out; :attr:`Pairing.excluded` lists them and
@@ -263,6 +264,14 @@ class Obstacle:
         1 = miss, 2 = the obstacle lies behind / is met from inside only (back)."""
         raise NotImplementedError
 
+    def closest(self, x):
+        """The signed distance of the points x (k, 2) to the obstacle's surface (positive outside
+        the obstacle) and its direction: (gap (k,), n (k, 2)) with n the unit normal of the
+        surface at the nearest point, pointing into the obstacle (the outer normal of a body
+        touching it there).  gap - n . u >= 0 is non-penetration linearised at x: n is minus the
+        distance's gradient.  n is NaN where the direction is undefined (the centre of a circle)."""
+        raise NotImplementedError
+
     def to_dict(self) -> dict:
         raise NotImplementedError
 
@@ -292,6 +301,11 @@ class Line(Obstacle):
             t = ((p - x) @ nv) / dn
         status = np.where(dn < 0, 0, np.where(dn > 0, 2, 1))
         return np.where(status == 0, t, np.inf), status
+
+    def closest(self, x):
+        p, nv = np.asarray(self.point), np.asarray(self.normal)
+        x = np.asarray(x, dtype=float).reshape(-1, 2)
+        return (x - p) @ nv, np.tile(-nv, (len(x), 1))
 
     def to_dict(self):
         return {"kind": "line", "point": list(self.point), "normal": list(self.normal)}
@@ -335,6 +349,15 @@ class Circle(Obstacle):
             return np.where(status == 0, t2, np.inf), status
         status = np.where(disc < 0, 1, np.where(t2 < 0, 2, 0))
         return np.where(status == 0, t1, np.inf), status
+
+    def closest(self, x):
+        r = np.asarray(x, dtype=float).reshape(-1, 2) - np.asarray(self.center)
+        dist = np.hypot(r[:, 0], r[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            radial = np.where(dist[:, None] > 0, r / dist[:, None], np.nan)
+        if self.inside:  # the solid beyond the circle: the body's normal points away from the centre
+            return self.radius - dist, radial
+        return dist - self.radius, -radial
 
     def to_dict(self):
         out = {"kind": "circle", "center": list(self.center), "radius": self.radius}
@@ -557,36 +580,56 @@ def node_to_segment(points, slave_facets, slave_centroids, master_facets, master
 
 def obstacle_pairing(points, slave_facets, slave_centroids, obstacle: Obstacle, *, search_distance=None,
                      slave_name="contact1", snap=0.0, fixed=None) -> Pairing:
-    """Pairing of a single body's contact boundary (body 1) with a rigid obstacle: each slave node's
-    outer normal is cast onto the obstacle; the distance along it is the gap, exactly 0 within
+    """Pairing of a single body's contact boundary (body 1) with a rigid obstacle.  The slave nodes
+    whose outer normal meets the obstacle from outside are its contact nodes; each one's row is
+    the non-penetration condition linearised at the node: the gap is its signed distance to the
+    obstacle's surface and the normal is the surface's normal at the nearest point
+    (:meth:`Obstacle.closest`), not the node's own averaged normal, which on a curved body is
+    tilted against a flat obstacle and would make frictionless contact carry tangential forces.
+    A node with one prescribed displacement component (``fixed``) keeps the normal along its free
+    component (:func:`roller_normals`) and the distance along it.  The gap is exactly 0 within
     ``snap`` (a node meshed on the obstacle's surface: gmsh places it there to rounding, and a gap
     of -1e-16 would make a touching interface an interference).  GeometryError when no node meets
-    the obstacle (it does not face the body).  ``fixed``: see :func:`node_normals`."""
+    the obstacle (it does not face the body)."""
     pts = np.asarray(points, dtype=float)
     search = check_search_distance(search_distance)
     snodes, snormal = node_normals(pts, slave_facets, slave_centroids, slave_name, fixed)
     xs = pts[snodes]
     t, status = obstacle.ray(xs, snormal)
+    gap, normal = obstacle.closest(xs)
+    status = np.where((status == 0) & ~np.isfinite(normal).all(axis=1), 1, status)  # (a node at a circle's centre)
+    if fixed is not None:
+        along = roller_normals(np.where(np.isfinite(normal), normal, 0.0), np.asarray(fixed, dtype=bool)[snodes])
+        turned = np.isfinite(normal).all(axis=1) & np.any(along != normal, axis=1)
+        if turned.any():
+            t_turned, hit = obstacle.ray(xs[turned], along[turned])
+            gap[turned] = np.where(hit == 0, t_turned, t[turned])
+            normal[turned] = along[turned]
+    # the surface nearest a node must face it: its normal and the node's outer normal not opposed
+    # (a node inside a disc it is meant to lie around meets the disc's far side along its normal)
+    status = np.where((status == 0) & (np.sum(np.nan_to_num(normal) * snormal, axis=1) <= 0.0), 2, status)
+    t = np.where(status == 0, gap, np.inf)
     t = np.where((status == 0) & (np.abs(t) <= snap), 0.0, t)
     far = (status == 0) & (search is not None) & (np.abs(t) > (search if search is not None else np.inf))
     found = (status == 0) & ~far
+    hint = ""
+    if isinstance(obstacle, Circle) and not obstacle.inside and np.all(gap < 0):
+        hint = " (a body in a circular hole: inside = true)"
     if not found.any():
         why = ("its surface is farther than search_distance from every node" if far.any() else
                "the outer normals of the body's contact nodes miss it or meet it from behind")
         raise GeometryError(f"the obstacle {obstacle.to_dict()} does not face {slave_name}: {why} "
                             f"({slave_name} spans x in [{xs[:, 0].min():.6g}, {xs[:, 0].max():.6g}], "
-                            f"y in [{xs[:, 1].min():.6g}, {xs[:, 1].max():.6g}])")
+                            f"y in [{xs[:, 1].min():.6g}, {xs[:, 1].max():.6g}]){hint}")
     extent = float(np.ptp(xs, axis=0).max(initial=0.0))
     if np.all(t[found] < 0) and -t[found].min() > INTERFERENCE_LIMIT * extent:
         # (a shallower interference at every node is a press fit: a shaft in a smaller bore)
         raise GeometryError(f"the obstacle {obstacle.to_dict()} does not face {slave_name}: every {slave_name} node "
                             f"lies inside it (gaps from {t[found].min():.6g} to {t[found].max():.6g}); is its normal "
-                            "reversed or its position wrong?"
-                            + (" (a body in a circular hole: inside = true)"
-                               if isinstance(obstacle, Circle) and not obstacle.inside else ""))
+                            "reversed or its position wrong?" + hint)
     reason = np.where(far, "distance", np.where(status == 2, "back", "miss"))
     m = int(found.sum())
     trib = tributary_lengths(pts, slave_facets, snodes)
-    return Pairing(snodes[found], np.full((m, 2), -1, dtype=np.int64), np.zeros((m, 2)), snormal[found].reshape(-1, 2),
+    return Pairing(snodes[found], np.full((m, 2), -1, dtype=np.int64), np.zeros((m, 2)), normal[found].reshape(-1, 2),
                    t[found], trib[found], 1, snodes[~found], reason[~found].astype("<U8"),
-                   xs[found] + t[found, None] * snormal[found])
+                   xs[found] + t[found, None] * normal[found])

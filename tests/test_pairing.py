@@ -103,26 +103,32 @@ def _block_on(obstacle, **kw):
 
 
 def test_line_obstacle_gap_and_rows():
-    """A rigid line y = -0.01 x - 0.005 below the block: the gap along the block's normal (0, -1)
-    is the vertical distance; the rows involve body 1's DOFs only, as the rigid foundation's."""
+    """A rigid line y = -0.01 x - 0.005 below the block: the gap is each node's distance to the line
+    and the rows are taken along the line's normal (non-penetration linearised at the node), not
+    along the block's (0, -1); they involve body 1's DOFs only, as the rigid foundation's."""
     slope, off = -0.01, -0.005
     nv = np.array([-slope, 1.0]) / np.hypot(slope, 1.0)
     system = _block_on({"kind": "line", "point": (0.0, off), "normal": tuple(nv)})
     x = system.geometry.contact_points[:, 0]
-    assert np.allclose(system.gap, -(slope * x + off), rtol=1e-12, atol=1e-15)
+    assert np.allclose(system.gap, x * nv[0] - off * nv[1], rtol=1e-12, atol=1e-15)
     assert np.all(system.geometry.contact_nodes[:, 1] == -1)
+    assert np.allclose(system.geometry.normals, -nv, rtol=0, atol=1e-15)
     N, T = _dense(system)
     ref = cfcontact.two_blocks(nx=10, ny=2, length=2.0, height=0.5, foundation=True, clamp=(),
                                dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.02)}}, tractions1={}, tractions2={})
-    assert np.array_equal(N, _dense(ref)[0]) and np.array_equal(T, _dense(ref)[1])
+    Nr, Tr = _dense(ref)  # rows along n = (0, -1), t = (1, 0): Tr reads u_x, -Nr u_y
+    n = -nv
+    t = np.array([-n[1], n[0]])
+    assert np.allclose(N, n[0] * Tr - n[1] * Nr, rtol=0, atol=1e-15)
+    assert np.allclose(T, t[0] * Tr - t[1] * Nr, rtol=0, atol=1e-15)
     assert system.info["contact"]["obstacle"]["kind"] == "line"
     assert system.geometry.obstacle == system.info["contact"]["obstacle"]
 
 
 def test_circle_obstacle_gap_excluded_nodes_and_warning():
-    """A rigid disc of radius 0.65 below the block's centre: the gap along (0, -1) is
-    d + R - sqrt(R^2 - (x - x0)^2); nodes beyond the disc (|x - x0| > R) are left out, with one
-    warning naming how many and where."""
+    """A rigid disc of radius 0.65 below the block's centre: the gap is the distance to the disc,
+    sqrt((x - x0)^2 + (R + d)^2) - R, along the disc's radial normal; nodes whose normal misses the
+    disc (|x - x0| > R) are left out, with one warning naming how many and where."""
     R, x0, d = 0.65, 1.0, 0.001
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -132,11 +138,14 @@ def test_circle_obstacle_gap_excluded_nodes_and_warning():
     msg = str(ours[0].message)
     x = system.geometry.contact_points[:, 0]
     assert np.all(np.abs(x - x0) <= R)
-    assert np.allclose(system.gap, d + R - np.sqrt(R ** 2 - (x - x0) ** 2), rtol=1e-12)
+    dist = np.hypot(x - x0, R + d)
+    assert np.allclose(system.gap, dist - R, rtol=1e-12)
+    assert np.allclose(system.geometry.normals, -np.column_stack([x - x0, np.full_like(x, R + d)]) / dist[:, None],
+                       rtol=0, atol=1e-15)
     info = system.info["contact"]
     assert info["excluded"] == 21 - 13 and info["pairs"] == 13 and info["excluded_reasons"] == {"miss": 8}
     assert "8 contact1=10 node(s) left out" in msg and "misses the obstacle" in msg and "x in [0, 2]" in msg
-    assert info["gap_range"] == [pytest.approx(d), pytest.approx(d + R - np.sqrt(R ** 2 - 0.6 ** 2))]
+    assert info["gap_range"] == [pytest.approx(d), pytest.approx(np.hypot(0.6, R + d) - R)]
     # a search distance keeps only the nodes within it
     with pytest.warns(PairingWarning, match="farther than the search distance"):
         near = _block_on({"kind": "circle", "center": (x0, -R - d), "radius": R}, nx=20, search_distance=0.05)

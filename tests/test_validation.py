@@ -146,3 +146,71 @@ def test_mindlin_decoupled_blocks_have_degenerate_transitions():
     ea = [float(ea[g].mean()) for g in _groups(ea)]
     sa = [t["alpha"] for t in res["methods"]["seed"]["transitions"]]
     assert np.allclose(ea, sa, atol=2e-5)
+
+
+def _half_disc_on_a_line(radius, h, indentation, nu, friction=0.0):
+    """The lower half of a disc of radius ``radius`` (E = 1, its bottom at y = 0; elements of h
+    along the arc |x| <= 0.3 R, growing away from it) pressed by ``indentation`` (its top moved
+    down) onto the rigid line y = 0 (an obstacle)."""
+    from cfcontact import compat
+
+    zone = 0.3 * radius
+    with compat.gmsh_model("half_disc") as model:
+        geo = model.geo
+        phi = np.arcsin(zone / radius)
+        centre = geo.addPoint(0, radius, 0)
+        left, right = geo.addPoint(-radius, radius, 0), geo.addPoint(radius, radius, 0)
+        zl, zr = (geo.addPoint(s * zone, radius * (1 - np.cos(phi)), 0) for s in (-1, 1))
+        bottom = geo.addPoint(0, 0, 0)
+        arcs = [geo.addCircleArc(left, centre, zl), geo.addCircleArc(zl, centre, bottom),
+                geo.addCircleArc(bottom, centre, zr), geo.addCircleArc(zr, centre, right)]
+        top = geo.addLine(right, left)
+        surface = geo.addPlaneSurface([geo.addCurveLoop(arcs + [top])])
+        for arc in arcs[1:3]:
+            geo.mesh.setTransfiniteCurve(arc, int(round(radius * phi / h)) + 1)
+        geo.synchronize()
+        for dim, tags, num, name in ((2, [surface], 1, "body1"), (1, arcs[1:3], 10, "contact1"), (1, [top], 12, "top1"),
+                                     (1, [arcs[0], arcs[3]], 11, "side1")):
+            model.addPhysicalGroup(dim, tags, num)
+            model.setPhysicalName(dim, num, name)
+        field = model.mesh.field
+        dist = field.add("Distance")
+        field.setNumbers(dist, "CurvesList", arcs[1:3])
+        size = field.add("MathEval")
+        field.setString(size, "F", f"min({h} + 0.2 * F{dist}, {0.1 * radius})")
+        field.setAsBackgroundMesh(size)
+        import gmsh
+
+        for option in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+            gmsh.option.setNumber(option, 0)
+        model.mesh.generate(2)
+        return cfcontact.assemble_contact_system(
+            model, E=1.0, nu=nu, clamp=(), friction=friction, dirichlet={"top1": {"x": 0.0, "y": (0.0, -indentation)}},
+            obstacle={"kind": "line", "point": (0.0, 0.0), "normal": (0.0, 1.0)})
+
+
+def test_hertz_curved_body_on_a_rigid_line():
+    """A half-disc pressed frictionlessly onto a rigid line (plane strain, nu = 0, a / R ~ 0.1,
+    a / h ~ 15): the contact rows follow the line's normal, so every contact force is normal to
+    the line (along the half-disc's own averaged normals they were tilted by x / R: a frictionless
+    contact carrying shear, 4.7 % of the largest normal force), and the peak pressure is Hertz's
+    p0 = 2 P / (pi a), a = sqrt(4 P R / (pi E*)), E* = E / (1 - nu^2), within 2 % (measured 1.1 %,
+    1.4 % at a / h ~ 8; along the half-disc's normals 3.6 % and 3.8 %).  The pressure is each
+    node's normal force over its tributary length projected on the line."""
+    radius, nu = 0.8, 0.0
+    system = _half_disc_on_a_line(radius, 0.005, 0.012, nu)
+    geometry = system.geometry
+    assert np.allclose(geometry.normals, (0.0, -1.0), rtol=0, atol=1e-15)
+    sol = cfcontact.ssnm(system, 1.0)
+    assert cfcontact.verify(system, sol, 1.0).worst() <= 1e-10
+    force = sol.lam_n  # along (0, -1) on the half-disc: the line pushes it up by lam_n
+    x = geometry.contact_points[:, 0]
+    P = float(force.sum())
+    a = np.sqrt(4.0 * P * radius * (1.0 - nu ** 2) / np.pi)  # (E = 1)
+    p0 = 2.0 * P / (np.pi * a)
+    closed = force > 0
+    h = float(np.median(geometry.tributary[closed]))
+    assert 12 <= a / h <= 20 and closed.sum() >= 25
+    pressure = force / (geometry.tributary * np.cos(np.arcsin(x / radius)))
+    assert abs(pressure.max() / p0 - 1.0) <= 0.02
+    assert abs(x[closed]).max() == pytest.approx(a, abs=h)
