@@ -13,6 +13,7 @@ from cfcontact.errors import (
     ConvergenceError,
     EnumerationTooLarge,
     GeometryError,
+    IgnoredOptionWarning,
     InputError,
     NotPositiveDefiniteError,
     PairingWarning,
@@ -77,7 +78,7 @@ def __getattr__(name):
 
 
 __all__ = [
-    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "InputError",
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "IgnoredOptionWarning", "InputError",
     "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError",
     "StartInterrupted", *_LAZY,
 ]

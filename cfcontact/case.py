@@ -29,7 +29,7 @@ from typing import Any, Optional
 from cfcontact.errors import InputError
 from cfcontact.interrupts import python_sigint, sigint_deferred  # noqa: F401 (the CLI imports them from here)
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
-from cfcontact.options import BACKENDS, MAX_FRICTION, MAX_TOL, METHODS, AlphaSpan, PathOptions
+from cfcontact.options import BACKENDS, MAX_FRICTION, MAX_TOL, METHODS, AlphaSpan, PathOptions, unused_options
 from cfcontact.pairing import OBSTACLE_KEYS, OBSTACLE_OPTIONAL, PAIRINGS
 
 __all__ = ["CaseError", "SCHEMA", "GEOMETRY_KINDS", "PHYSICS_SECTIONS", "Key", "validate_case", "load_case",
@@ -765,11 +765,7 @@ def _validate_path(table):
 
 def _unused_path_keys(raw, path) -> list:
     """Warnings for [path] keys the case gives but its method or parameter does not use."""
-    notes = []
-    for f in fields(PathOptions):
-        if f.name in raw and path["method"] not in f.metadata["methods"]:
-            notes.append(f"[path] {f.name}: used by the {' and '.join(f.metadata['methods'])} method only; ignored "
-                         f"with method = {path['method']!r}")
+    notes = [f"[path] {note}" for note in unused_options(path["method"], raw)]
     if path.get("parameter") != "friction":
         notes += [f'[path] {k}: used with parameter = "friction" only; ignored' for k in ("friction_start", "friction_end")
                   if k in raw]

@@ -88,3 +88,8 @@ class EnumerationTooLarge(InputError):
 class PairingWarning(UserWarning):
     """Contact pairing left some slave nodes out (their normal misses the master, meets only its
     back, or meets it farther than the search distance).  Not an error: the model is built."""
+
+
+class IgnoredOptionWarning(UserWarning):
+    """A path option given explicitly that the chosen method does not use (``tree=True`` with
+    ``method="seed"``, a seed step option with ``method="exact"``): the run goes on without it."""

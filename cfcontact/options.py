@@ -48,6 +48,17 @@ def _option(default, kind, doc, methods=METHODS):
     return field(default=default, metadata={"kind": kind, "doc": doc, "methods": tuple(methods)})
 
 
+def unused_options(method: str, names) -> list:
+    """The names among ``names`` of PathOptions fields that ``method`` does not use, each with why:
+    ["tree: used by the exact method only; ignored with method = 'seed'", ...]."""
+    out = []
+    for f in fields(PathOptions):
+        if f.name in names and method not in f.metadata["methods"]:
+            out.append(f"{f.name}: used by the {' and '.join(f.metadata['methods'])} method only; ignored "
+                       f"with method = {method!r}")
+    return out
+
+
 @dataclass(frozen=True)
 class PathOptions:
     """Options of the path-following layer (seed defaults, its Figure 6); validated on construction.

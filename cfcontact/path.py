@@ -15,11 +15,12 @@ logic are re-exported here for code written against the single ``path`` module.
 
 from __future__ import annotations
 
+import warnings
 from typing import Callable, Optional
 
 from cfcontact.backend import CONDENSED_MAX_M, auto_backend, machine_memory, select_solver
-from cfcontact.errors import InputError
-from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions, check_method
+from cfcontact.errors import IgnoredOptionWarning, InputError
+from cfcontact.options import BACKENDS, METHODS, AlphaSpan, PathOptions, check_method, unused_options
 from cfcontact.solution_path import (
     BATCH_LIMIT,
     FORMAT_VERSION,
@@ -78,7 +79,8 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
         seed method uses full, as in [JL-PF])
     y0 : start solution or guess (Solution or flat vector); SSNM at alpha_start is run from it
     options : PathOptions; keyword arguments override its fields (e.g. ``h_min=1e-6``,
-        ``tie_rtol=1e-9``)
+        ``tie_rtol=1e-9``); one the method does not use (``tree=True`` with "seed") is ignored with
+        an :class:`~cfcontact.IgnoredOptionWarning`
     callback : called with each accepted :class:`~cfcontact.solution_path.PathPoint`; a truthy
         return stops the run (status "stopped by callback")
     monitor : called during a long start, before the path's first point (the exact method's
@@ -95,6 +97,8 @@ def trace_path(system: ContactSystem, alpha_start: float = 0.0, alpha_end: float
     """
     check_method(method)
     opts, span = check_request(system, alpha_start, alpha_end, options, **overrides)
+    for note in unused_options(method, overrides):
+        warnings.warn(note, IgnoredOptionWarning, stacklevel=2)
     check_resume_method(resume, method)
     if callback is not None and not callable(callback):  # (the monitor is checked where it is used)
         raise InputError(f"callback must be a function of a PathPoint (or None), got {callback!r}")

@@ -527,11 +527,26 @@ class SolutionPath:
         b = lt + self.rho * (self.T @ u)
         return a, b - F * ln, b + F * ln
 
-    def _consistent(self, y, sets, slack=1e-9, ind=None):
-        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative); ``ind`` = (a, bp, bm) of y if known."""
+    def _rounding(self, b, alpha) -> float:
+        """What rounding can make of the indicators of formed branch b at alpha: y(alpha) = Y_ref +
+        (alpha - alpha_ref) dY carries the rounding of its terms and of the data it was solved from,
+        f(alpha) = (1 - alpha) f1 + alpha f2 (terms of the size of the rate dY), which near a point
+        where the data vanish (a load reversed through zero) are far larger than y itself."""
+        a_r, Yr, dY = self._Y[b]
+        n, d = self.n, abs(alpha - a_r) + abs(a_r) + 1.0
+        size_u = np.abs(Yr[:n]).max(initial=0) + d * np.abs(dY[:n]).max(initial=0)
+        size_l = np.abs(Yr[n:]).max(initial=0) + d * np.abs(dY[n:]).max(initial=0)
+        rows = max(np.asarray(abs(A).sum(axis=1)).max(initial=0) for A in (self.N, self.T))
+        F = np.asarray(self.friction, dtype=float).max(initial=0)
+        gap = np.abs(np.asarray(self.gap, dtype=float)).max(initial=0)
+        return 16 * np.finfo(float).eps * ((1.0 + F) * size_l + self.rho * (rows * size_u + gap))
+
+    def _consistent(self, y, sets, slack=1e-9, ind=None, floor=0.0):
+        """Z(y) agrees with ``sets`` up to ties within ``slack`` (relative) or ``floor`` (absolute:
+        the indicators' rounding); ``ind`` = (a, bp, bm) of y if known."""
         a, bp, bm = self._indicators(y) if ind is None else ind
         scale = max(np.abs(a).max(initial=0), np.abs(bp).max(initial=0), np.abs(bm).max(initial=0), 1e-300)
-        tol = slack * scale
+        tol = max(slack * scale, floor)
         F = np.broadcast_to(np.asarray(self.friction, dtype=float), (self.m,))
         free = sets.nu | (F == 0.0)
         ok_nu = np.where(sets.nu, a < tol, a > -tol)
@@ -576,6 +591,10 @@ class SolutionPath:
         Returns a list of :class:`Solution` sorted by branch order.
         """
         alpha = check_alpha(alpha)
+        if not (isinstance(rtol, (int, float, np.floating, np.integer)) and not isinstance(rtol, bool)
+                and 0.0 <= rtol < 1.0):
+            raise InputError(f"rtol must be a number in [0, 1) (the relative distance below which two solutions are "
+                             f"one), got {rtol!r}")
         picked = self._solution_branches(alpha, rtol)
         self.form([b.index for b in picked])
         out = []
@@ -606,7 +625,7 @@ class SolutionPath:
             slack = 1e-12 if j in strict else 1e-9
             if b.index in self._Y:
                 y = self.branch_y(b, alpha)
-                if not self._consistent(y, b.sets, slack=slack):
+                if not self._consistent(y, b.sets, slack=slack, floor=self._rounding(b.index, alpha)):
                     continue
                 key = (y, False)
             else:

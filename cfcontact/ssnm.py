@@ -432,14 +432,19 @@ def dirneu(system: ContactSystem, Z: InactiveSets, alpha: float = 0.0, f=None, s
     return Solution.from_y(system, y, alpha)
 
 
-def _as_y(system, y0):
+def _as_y(system, y0, what="y0"):
     size = system.n + 2 * system.m
     if isinstance(y0, Solution):
         return y0.y
-    y0 = np.asarray(y0, dtype=float)
+    usage = f"{what} must be a Solution or a flat vector (u, lam_n, lam_t) of length n + 2m = {size}"
+    try:
+        y0 = np.asarray(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{usage}, got {y0!r:.80}") from None
     if y0.shape != (size,):
-        raise InputError(f"y0 must be a Solution or a flat vector (u, lam_n, lam_t) of length n + 2m = {size}, "
-                         f"got shape {y0.shape}")
+        raise InputError(f"{usage}, got shape {y0.shape}")
+    if not np.all(np.isfinite(y0)):
+        raise InputError(f"{what} has non-finite entries (at {np.flatnonzero(~np.isfinite(y0))[:5].tolist()}...)")
     return y0
 
 
@@ -493,8 +498,8 @@ class Verification:
         (relative to ||f|| alone, an ill-conditioned K -- a slender body -- shows its condition
         number times the rounding, whatever the solver)
     normal, tangential: max-norm of the 2nd / 3rd block of G(y) in (4) over the force scale: the
-        largest of |lam|, rho |N u - g|, rho |T u| and, the gap left being a difference, rho |N u|
-        and rho |g|
+        largest of |lam|, rho |N u - g|, rho |T u|, the load |f| and, the gap left being a
+        difference, rho |N u| and rho |g|
     cone: max (|lam_t| - F lam_n)_+ ; sign: max (-lam_n)_+ and (N u - g)_+ (penetration, times rho)
     slip_direction: worst violation of "stick => T u = 0, slip+- => +-T u >= 0" (times rho)
     """
@@ -518,7 +523,7 @@ class Verification:
 def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) -> Verification:
     """Check (1)-(3) at y (a Solution or a flat vector), independently of the sets used to get it.
     The normal conditions are those with the system's gap g: N u - g <= 0, lam_n^T (N u - g) = 0."""
-    y = _as_y(system, y)
+    y = _as_y(system, y, "y")
     solver = solver or get_solver(system)
     n, m, rho = system.n, system.m, system.rho
     u, ln, lt = y[:n], y[n:n + m], y[n + m:]
@@ -533,10 +538,12 @@ def verify(system: ContactSystem, y, alpha: float = 0.0, f=None, solver=None) ->
     Nu0 = N @ u
     Nu, Tu = rho * (Nu0 - system.gap), rho * (T @ u)  # Nu: rho times the gap left, N u - g
     # the gap left is a difference: its rounding is that of N u and g, which count in the scale (a
-    # punch landing with zero force: every N u - g and lam vanish, N u and g do not)
+    # punch landing with zero force: every N u - g and lam vanish, N u and g do not); so does the
+    # load, the size equilibrium is measured against (a node at zero gap whose multipliers and
+    # N u all vanish at its transition: N u = (K^-1 f)_n is then the rounding of u = K^-1 f)
     scale = max(np.abs(ln).max(initial=0), np.abs(lt).max(initial=0), np.abs(Nu).max(initial=0),
                 np.abs(Tu).max(initial=0), rho * np.abs(Nu0).max(initial=0),
-                rho * np.abs(np.asarray(system.gap, dtype=float)).max(initial=0), 1e-300)
+                rho * np.abs(np.asarray(system.gap, dtype=float)).max(initial=0), np.abs(fvec).max(initial=0), 1e-300)
     g2 = ln - np.maximum(0.0, ln + Nu)
     g = F * ln
     x = lt + Tu

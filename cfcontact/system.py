@@ -435,7 +435,14 @@ class ContactSystem:
                 raise InputError(f"{name} must have shape (m, n) = ({m}, {n}) to match K and N, got {A.shape}")
         loads = []
         for name, f in (("f1", f1), ("f2", f2)):
-            f = np.asarray(f, dtype=float).ravel() if np.ndim(f) <= 2 else np.asarray(f)
+            try:
+                f = np.asarray(f, dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(f"load vector {name} must be n = {n} numbers, got {f!r:.80}") from None
+            if f.ndim == 2 and 1 in f.shape:  # a column or a row
+                f = f.ravel()
+            if f.ndim != 1:
+                raise InputError(f"load vector {name} has shape {f.shape}, expected ({n},) (n, the size of K)")
             if f.shape != (n,):
                 raise InputError(f"load vector {name} has length {f.size}, expected n = {n} (the size of K)")
             if not np.all(np.isfinite(f)):
@@ -444,9 +451,16 @@ class ContactSystem:
         asym = abs(K - K.T).max() if K.nnz else 0.0
         if asym > 1e-10 * max(abs(K).max(), 1e-300):
             raise InputError(f"K must be symmetric; max |K - K^T| = {asym:.3e}")
+        N.eliminate_zeros()
+        T.eliminate_zeros()
         empty = np.flatnonzero((np.diff(N.indptr) == 0) & (np.diff(T.indptr) == 0))
         if empty.size:
             raise InputError(f"contact nodes {empty.tolist()} have zero rows in both N and T (fully clamped?)")
+        no_normal = np.flatnonzero(np.diff(N.indptr) == 0)
+        if no_normal.size:
+            raise InputError(f"contact nodes {no_normal[:10].tolist()} have a zero row in N: a contact node needs a "
+                             "normal direction (a node without a tangential unknown has a zero row in T instead)")
+        _check_distinct_rows(N, T)
         _check_friction(friction, m)
         gap = _check_gap(gap, m)
         if rho is None:
@@ -467,6 +481,21 @@ class ContactSystem:
     def __repr__(self):
         gap = f", gap in [{self.gap.min():.3g}, {self.gap.max():.3g}]" if self.has_gap else ""
         return f"ContactSystem(n={self.n}, m={self.m}, friction={self.friction!r}, rho={self.rho:.4g}{gap})"
+
+
+def _check_distinct_rows(N, T):
+    """InputError naming two contact nodes with the same rows of N and T: the same constraint twice,
+    whose multipliers no load decides (every reduced system of the problem would be singular)."""
+    B = sp.hstack([N, T], format="csr")
+    B.sort_indices()
+    seen = {}
+    for i in range(B.shape[0]):
+        lo, hi = B.indptr[i], B.indptr[i + 1]
+        key = (B.indices[lo:hi].tobytes(), B.data[lo:hi].tobytes())
+        if key in seen:
+            raise InputError(f"contact nodes {seen[key]} and {i} have the same rows of N and T: the same contact "
+                             "condition twice (remove one of them)")
+        seen[key] = i
 
 
 def check_alpha(alpha) -> float:

@@ -1093,3 +1093,46 @@ def test_monitor_sees_and_can_abandon_a_homotopy_start(monkeypatch):
     calls = []
     assert cfcontact.trace_path(easy, 0.0, 1.0, method="exact", monitor=calls.append).stats["start"] == "ssnm"
     assert calls == []
+
+
+def test_a_node_whose_data_all_vanish_at_its_transition_verifies():
+    """One node without a tangential unknown at zero gap: at its transition lam = 0 and N u =
+    (K^-1 f)_n vanishes to the rounding of u = K^-1 f (1e-16 of |u| ~ 1), as every contact
+    quantity does; verify measures that against the load, the size equilibrium is measured
+    against, not against the contact quantities alone (which made it 1.0 on a correct point)."""
+    from cfcontact.report import worst_residual
+
+    K = np.array([[1.0, 0.75], [0.75, 1.5]])
+    system = ContactSystem.from_arrays(K, [[0.0, 1.0]], [[0.0, 0.0]], [-1.5, 0.25], [-0.75, -1.3], 1.0)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    (t,) = path.transitions
+    (sol,) = path.solutions_at(t.alpha)
+    u = np.linalg.solve(K, system.load(t.alpha))  # the independent solution: lam = 0
+    assert np.allclose(sol.u, u, rtol=0, atol=1e-15) and not sol.lam_n.any()
+    assert cfcontact.verify(system, sol, t.alpha).worst() < 1e-14
+    assert worst_residual(system, path) < 1e-14
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_solutions_at_an_apex_are_the_same_lazy_formed_and_reloaded(seed, tmp_path):
+    """A load reversed through zero at alpha = 1/3 (f2 = -2 f1, no gap), which no double holds: at
+    the doubles around it the path has the one solution y = (1 - 3 alpha) y(f1) whether its branches
+    are lazy (decided from their multipliers), formed (from u, whose rounding there is that of the
+    data, not of y) or saved and loaded (a formed branch counted 0 solutions there)."""
+    base = random_system(4, seed, friction=[0.0, 0.3, 0.3, 1.0])
+    f1 = base.loads_numpy()[0]
+    system = base.with_loads(f1, -2.0 * f1)
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed"
+    apex = min((t.alpha for t in path.transitions), key=lambda a: abs(a - 1.0 / 3.0))
+    assert apex == pytest.approx(1.0 / 3.0, abs=1e-15)
+    alphas = [apex + k * np.spacing(apex) for k in (-8, -1, 0, 1, 8)]
+    lazy = [path.multiplicity(a) for a in alphas]
+    path.form()
+    formed = [path.multiplicity(a) for a in alphas]
+    path.save(str(tmp_path / "apex"))
+    loaded = cfcontact.SolutionPath.load(str(tmp_path / "apex"))
+    assert lazy == formed == [loaded.multiplicity(a) for a in alphas] == [1] * 5
+    for a in alphas:
+        (sol,) = loaded.solutions_at(a)
+        assert np.abs(sol.y).max() <= 1e-13 * np.abs(path.solutions_at(0.0)[0].y).max()

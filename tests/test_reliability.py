@@ -296,6 +296,47 @@ def test_bad_numbers_in_the_api():
     assert len(_system(K).checksum()) == 64 and _system(K).checksum() != _system(K, friction=0.4).checksum()
 
 
+def test_bad_vectors_and_contact_rows_of_plain_matrix_systems():
+    """Loads and start vectors that are not n (or n + 2m) finite numbers, a contact node without a
+    normal row, the same contact condition twice, a solutions_at rtol out of range: InputErrors
+    naming the value (not NumPy's ValueError, not a silently flattened matrix, not a singular
+    reduced system found later without the node); an option the method does not use: a warning."""
+    import warnings
+
+    import cfcontact
+    from cfcontact.errors import IgnoredOptionWarning, InputError
+    from cfcontact.system import ContactSystem
+
+    K = np.diag([2.0, 2.0, 3.0, 3.0])
+    N, T = [[0, 1.0, 0, 0], [0, 0, 0, 1.0]], [[1.0, 0, 0, 0], [0, 0, 1.0, 0]]
+    f1, f2 = [0.1, -1.0, 0.2, -1.0], [0.3, 0.5, -0.2, 0.4]
+    with pytest.raises(InputError, match="load vector f1 must be n = 4 numbers, got 'abc'"):
+        ContactSystem.from_arrays(K, N, T, "abc", f2, 0.5)
+    with pytest.raises(InputError, match=r"load vector f2 has shape \(2, 2\), expected \(4,\)"):
+        ContactSystem.from_arrays(K, N, T, f1, np.reshape(f2, (2, 2)), 0.5)
+    assert ContactSystem.from_arrays(K, N, T, np.reshape(f1, (4, 1)), f2, 0.5).n == 4  # a column is a vector
+    with pytest.raises(InputError, match=r"contact nodes \[1\] have a zero row in N"):
+        ContactSystem.from_arrays(K, [N[0], [0.0] * 4], T, f1, f2, 0.5)
+    with pytest.raises(InputError, match="contact nodes 0 and 1 have the same rows of N and T"):
+        ContactSystem.from_arrays(K, [N[0], N[0]], [T[0], T[0]], f1, f2, 0.5)
+    system = ContactSystem.from_arrays(K, N, T, f1, f2, 0.5)
+    with pytest.raises(InputError, match="y0 must be a Solution or a flat vector .* got 'x'"):
+        cfcontact.trace_path(system, method="exact", y0="x")
+    with pytest.raises(InputError, match="y0 has non-finite entries"):
+        cfcontact.ssnm(system, 0.5, y0=np.full(8, np.nan))
+    with pytest.raises(InputError, match="y must be a Solution"):
+        cfcontact.verify(system, [1.0, 2.0], 0.5)
+    path = cfcontact.trace_path(system, method="exact")
+    for rtol in (-1.0, float("nan"), 1.0, "x"):
+        with pytest.raises(InputError, match="rtol must be a number in"):
+            path.solutions_at(0.5, rtol=rtol)
+    with pytest.warns(IgnoredOptionWarning, match="tree: used by the exact method only; ignored with method = 'seed'"):
+        cfcontact.trace_path(system, method="seed", tree=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cfcontact.trace_path(system, method="seed", h_min=1e-6)  # (an option the method uses: no warning)
+
+
 def test_a_system_without_contact_nodes():
     """m = 0: the seed method traces the linear problem; the condensed backend (exact method,
     enumeration) refuses with an InputError instead of failing inside (a zero range step)."""
