@@ -424,7 +424,9 @@ def table_e(r) -> str:
 # ====================================================================== main
 def add_arguments(ap):
     """The benchmark's options (shared by ``demos/bench.py`` and ``cfcontact bench``)."""
-    ap.add_argument("--quick", action="store_true", help="coarse demo mesh in Part A, small sizes in Part B")
+    ap.add_argument("--quick", action="store_true",
+                    help="small sizes in every part (Part A: coarse two-block mesh, the demo as it is; B: 2e3,1e4; "
+                         "C and D: see --contact-nodes, --paths, --seed-check; E: a 40 x 40 map)")
     ap.add_argument("--sizes", help="Part B target DOF counts, comma separated (default 1e4,1.2e5,1e6; "
                                     "--quick: 2e3,1e4)")
     ap.add_argument("--contact-nodes", help="Parts C and D: contact node counts m of the strips, comma separated "

@@ -46,6 +46,7 @@ from cfcontact.run import (
     output_folder,
     parameter_label,
     resolve_saved,
+    run_timings,
     saved_material,
 )
 from cfcontact.solution_path import parameter_name
@@ -565,11 +566,14 @@ def cmd_info(args):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PairingWarning)  # (the report lists the excluded nodes)
             system = build_system(case)
-        rep = model_report(system, case["_file"])
+        rep = model_report(system, case["_file"], kind=case["geometry"]["kind"])
         print(json.dumps(rep, indent=1) if args.json else format_model_report(rep))
         return EXIT_OK
     src, path = _load_saved(args.saved)
     rep = path_report(path, _saved_contact_settings(src))
+    timings = run_timings(src)
+    if timings is not None:
+        rep["timings"] = timings
     if args.json:
         print(json.dumps(rep, indent=1))
     else:
@@ -690,9 +694,10 @@ def _setup_export(sub, common):
 def _setup_info(sub, common):
     p = sub.add_parser("info", parents=[common], help="transitions, folds, multiplicity, events, stats and contact "
                                                       "pairing of a path; the model and pairing of a case",
-                       description="A saved path: status, transitions, folds, multiplicity, events, statistics and "
-                                   "its contact pairing. A case file (CASE.toml): builds its model and reports its "
-                                   "size and pairing (pairs, excluded nodes, initial gap).")
+                       description="A saved path: status, transitions, folds, multiplicity, events, statistics, "
+                                   "a run folder's timings (summary.json) and its contact pairing. A case file "
+                                   "(CASE.toml): builds its model and reports its size and pairing (pairs, excluded "
+                                   "nodes, initial gap).")
     p.add_argument("saved", metavar="SAVED_PATH_DIR|CASE.toml")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_info)
@@ -709,12 +714,11 @@ def cmd_bench(args):
 
 
 def _setup_bench(sub, common):
-    p = sub.add_parser("bench", parents=[common], help="benchmark: seed vs exact on the main demo, exact method "
-                                                       "on refined meshes",
-                       description="Part A: seed vs exact method on the main demo (demos/main.py) and on two "
-                                   "steel blocks. Part B: the exact method on refined meshes of the two steel "
-                                   "blocks (time split, peak memory). Prints "
-                                   "both tables and writes <output>/bench.json. See docs/bench.md.")
+    p = sub.add_parser("bench", parents=[common], help="benchmark: A seed vs exact, B refined meshes, C long "
+                                                       "interfaces, D hard cases, E friction map",
+                       description="Parts A-E (see --part; default A and B at full size, Part B up to n = 1e6 "
+                                   "DOFs: try --quick first); prints each part's table and writes "
+                                   "<output>/bench.json. See docs/bench.md.")
     from cfcontact.bench import add_arguments
 
     add_arguments(p)

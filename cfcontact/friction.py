@@ -201,7 +201,7 @@ class FrictionPath(SolutionPath):
         return {**super().summary(), "parameter": "friction", "load_alpha": self.load_alpha}
 
     def __repr__(self):
-        return "Friction" + super().__repr__() + f"[alpha={self.load_alpha:g}]"
+        return "FrictionPath" + super().__repr__().removeprefix("SolutionPath") + f"[alpha={self.load_alpha:g}]"
 
     # ------------------------------------------------------------- save / load
     def _branch_arrays(self) -> dict:

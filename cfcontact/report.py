@@ -140,10 +140,12 @@ def contact_lines(c) -> list:
     return lines
 
 
-def model_report(system, source=None) -> dict:
-    """The size and the contact pairing of a built model (``cfcontact info CASE.toml``), JSON data."""
+def model_report(system, source=None, kind=None) -> dict:
+    """The size and the contact pairing of a built model (``cfcontact info CASE.toml``), JSON data;
+    ``kind``: the case's ``[geometry] kind``, named as the model (else the builder's name, e.g.
+    "two_blocks" for "block_on_foundation" and "inclined")."""
     info = system.info
-    return jsonable({"source": source, "model": info.get("model"), "n": system.n, "m": system.m,
+    return jsonable({"source": source, "model": kind or info.get("model"), "n": system.n, "m": system.m,
                      "num_nodes": info.get("num_nodes"), "num_cells": info.get("num_cells"),
                      "cell_type": info.get("cell_type"), "dirichlet": info.get("dirichlet"),
                      "contact": contact_report(system=system)})
@@ -217,6 +219,11 @@ def unverified_text(alphas) -> str:
             f"path may have left the solution path (method = \"exact\" resolves such points)")
 
 
+def _count(k, noun) -> str:
+    """``k`` and ``noun``, in the plural unless k is 1."""
+    return f"{k} {noun}" if k == 1 else f"{k} {noun}s"
+
+
 def format_report(rep, source) -> str:
     """The text of ``cfcontact info``: a :func:`path_report` of the saved path ``source``."""
     friction = rep.get("parameter") == "friction"
@@ -228,7 +235,8 @@ def format_report(rep, source) -> str:
              + (f" at the load f(alpha = {rep['load_alpha']:.10g})" if friction and rep.get("load_alpha") is not None
                 else ""),
              f"points {rep['points']}, branches {rep['branches']}, transitions {len(rep['transitions'])} "
-             f"({sum(t['kind'] == 'transversal' for t in rep['transitions'])} transversal, {len(rep['folds'])} folds)"]
+             f"({sum(t['kind'] == 'transversal' for t in rep['transitions'])} transversal, "
+             f"{_count(len(rep['folds']), 'fold')})"]
     if rep.get("system_checksum"):
         lines.append(f"system checksum {rep['system_checksum']} (SHA-256 of n, m, K, N, T, f1, f2, friction, gap, rho)")
     if rep["alpha_of_max"] is not None:
@@ -264,6 +272,9 @@ def format_report(rep, source) -> str:
     if st:
         parts = [f"{k} {v:.3g} s" if k.endswith("time") else f"{k} {v}" for k, v in st.items()]
         lines.append("stats: " + ", ".join(parts))
+    timings = {k: v for k, v in (rep.get("timings") or {}).items() if isinstance(v, (int, float))}
+    if timings:
+        lines.append("timings (summary.json): " + ", ".join(f"{k} {v:.3g} s" for k, v in timings.items()))
     if rep.get("contact"):
         lines += contact_lines(rep["contact"])
     return "\n".join(lines)

@@ -53,7 +53,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["CaseRun", "Runner", "StopConditions", "Stopped", "OutputLock", "save_checkpoint", "load_checkpoint",
            "has_checkpoint", "write_outputs", "panel_solutions", "default_alpha", "resolve_saved", "saved_material", "load_saved_path",
-           "parameter_label", "output_folder", "replaceable_output", "RUN_FORMAT",
+           "parameter_label", "output_folder", "replaceable_output", "run_timings", "RUN_FORMAT",
            "CHECKPOINT_FORMAT", "DEFAULT_CHECKPOINT_EVERY"]
 
 RUN_FORMAT, CHECKPOINT_FORMAT = "cfcontact-run", "cfcontact-checkpoint"
@@ -857,6 +857,20 @@ def resolve_saved(dirname) -> str:
         if os.path.isfile(os.path.join(cand, "path.json")):
             return cand
     raise CaseError(f"{dirname!r} is not a saved path (expected path.json in it, in path/ or in checkpoint/path/)")
+
+
+def run_timings(src):
+    """The ``timings`` of the run whose output folder holds the saved path ``src`` (``<out>/path``:
+    its ``summary.json``), or None (a stopped run's or a library's saved path)."""
+    folder = os.path.dirname(os.path.abspath(src))
+    if not holds_format(folder, "summary.json", RUN_FORMAT):
+        return None
+    try:
+        timings = read_json(os.path.join(folder, "summary.json")).get("timings")
+    except (OSError, ValueError, AttributeError) as exc:
+        log.warning("%s is unreadable (%s): the run's timings are not shown", os.path.join(folder, "summary.json"), exc)
+        return None
+    return timings if isinstance(timings, dict) else None
 
 
 def saved_material(src, path):

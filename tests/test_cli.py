@@ -334,11 +334,14 @@ def test_info(small_run, capsys):
     assert cli.main(["info", out]) == 0
     text = capsys.readouterr().out
     for w in ("status completed", "transitions:", "transversal", "folds:", "multiplicity over alpha", "events:",
-              "linear_solves"):
+              "linear_solves", "timings (summary.json): assembly "):
         assert w in text, w
     assert cli.main(["info", os.path.join(out, "path"), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["status"] == "completed" and rep["multiplicity"][0]["solutions"] == 1
+    assert rep["timings"] == json.load(open(os.path.join(out, "summary.json")))["timings"]
+    folds = len(rep["folds"])
+    assert f"transversal, {folds} fold{'' if folds == 1 else 's'})" in text
     assert len(rep["transitions"]) == json.load(open(os.path.join(out, "summary.json")))["summary"]["transitions"]
 
 
@@ -851,10 +854,12 @@ def test_info_of_a_case_reports_its_pairing(tmp_path, capsys):
     for w in (f"m = {system.m} contact pairs", f"contact: {system.m} pairs, segment pairing, slave contact1=10, "
               "master obstacle", f"excluded nodes: {c['excluded']} ({c['excluded']} beyond the search distance); "
               "search distance 0.2", f"initial gap: {c['gap_range'][0]:.6g} .. {c['gap_range'][1]:.6g}",
-              "top1=12 u_x 0 -> 0, u_y 0 -> -0.03"):
+              "top1=12 u_x 0 -> 0, u_y 0 -> -0.03", "model block_on_foundation: "):
         assert w in text, (w, text)
     assert cli.main(["info", case, "--json"]) == 0
-    rep = json.loads(capsys.readouterr().out)["contact"]
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["model"] == "block_on_foundation"  # the case's kind (its builder is two_blocks)
+    rep = rep["contact"]
     assert rep["excluded"] == c["excluded"] > 0 and rep["gap_range"] == c["gap_range"] and rep["source"] == "model"
     assert sorted(os.listdir(tmp_path)) == ["case.toml"]  # info writes nothing
     bad = _write(tmp_path, "[geometry]\nkind = \"two_blocks\"\n[contact]\npairing = \"edge\"\n", "bad.toml")
@@ -885,7 +890,9 @@ def test_info_of_a_saved_path_reports_its_pairing(tmp_path, capsys):
     # a path saved by the library (no case.toml next to it): what the path tells
     path.save(tmp_path / "lib")
     assert cli.main(["info", str(tmp_path / "lib"), "--json"]) == 0
-    rep = json.loads(capsys.readouterr().out)["contact"]
+    rep = json.loads(capsys.readouterr().out)
+    assert "timings" not in rep  # (no run folder: no summary.json)
+    rep = rep["contact"]
     assert (rep["pairing"], rep["slave"], rep["master"], rep["search_distance"]) == ("segment", "contact2=20",
                                                                                       "contact1=10", None)
 

@@ -152,6 +152,7 @@ def test_friction_path_save_load_resume_and_errors(tmp_path):
     path.save(tmp_path / "fp")
     loaded = load_path(tmp_path / "fp")
     assert isinstance(loaded, FrictionPath) and loaded.load_alpha == 0.5
+    assert repr(loaded).startswith("FrictionPath(method='exact', ") and repr(loaded).endswith("[alpha=0.5]")
     assert np.allclose(loaded.ys, path.ys) and loaded.multiplicity_intervals() == path.multiplicity_intervals()
     for y, s in zip(before, loaded.solutions_at(F)):
         assert np.allclose(s.y, y, rtol=1e-13, atol=1e-13 * np.abs(y).max())
