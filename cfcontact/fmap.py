@@ -686,7 +686,8 @@ def _pieces(intervals, alpha_tol) -> list:
 
 def _join(pieces, alpha_tol, F_tol, a_lo, a_hi, F_lo, F_hi):
     """Curves: pieces joined end to start where they meet (F within F_tol, alpha within alpha_tol;
-    the same node and set preferred); cusps: two unjoined ends (or starts) at one point."""
+    the same node and set preferred), each to one in a later F interval; cusps: two unjoined ends
+    (or starts) at one point."""
     order = sorted(range(len(pieces)), key=lambda i: (pieces[i].F_a, pieces[i].ends[0]))
     succ, pred = {}, {}
     for i in sorted(range(len(pieces)), key=lambda i: (pieces[i].F_b, pieces[i].ends[1])):
@@ -694,8 +695,9 @@ def _join(pieces, alpha_tol, F_tol, a_lo, a_hi, F_lo, F_hi):
         best = None
         for k in order:
             q = pieces[k]
-            if k in pred or k == i or abs(q.F_a - p.F_b) > F_tol or abs(q.ends[0] - p.ends[1]) > alpha_tol:
-                continue
+            if k in pred or q.F_a <= p.F_a or abs(q.F_a - p.F_b) > F_tol or abs(q.ends[0] - p.ends[1]) > alpha_tol:
+                continue  # (a successor lies in a later interval: in one narrower than F_tol two pieces would
+                # join each other's ends into a cycle, and no curve would start)
             key = (0 if (q.node, q.set) == (p.node, p.set) else 1, abs(q.ends[0] - p.ends[1]))
             if best is None or key < best[0]:
                 best = (key, k)

@@ -193,6 +193,21 @@ def test_one_node_critical_friction_and_fold_curves_closed_form(K):
     assert fc.alphas_at(0.9 * ktt / ktn) == []
 
 
+@pytest.mark.parametrize("width", [1e-9, 1e-6])
+def test_fold_curves_of_a_friction_range_narrower_than_the_join_tolerance(width):
+    """An F range above the cusp only 1e-9 wide (narrower than the tolerance that joins pieces in
+    F, 2e-9 max(|F|, 1)): the two folds of every path in it are two curves at the closed-form
+    alphas (they had joined each other's ends into a cycle: no curve, alphas_at empty)."""
+    system = one_node(2.5, K1)
+    ktt, ktn = K1[0, 0], K1[0, 1]
+    F_lo = ktt / ktn + 1e-9
+    fc = fold_curves(system, (F_lo, F_lo + width))
+    F = F_lo + 0.5 * width
+    assert len(fc.curves) == 2 and len(fc.critical.folds) == 2
+    want = sorted([alpha_of_tan(system, ktn / ktt), alpha_of_tan(system, 1.0 / F)])
+    assert np.allclose(fc.alphas_at(F), want, atol=1e-10)
+
+
 def test_one_node_map_agrees_with_closed_form():
     system = one_node(2.5, K1)
     alphas = np.linspace(0.0, 1.0, 101)
