@@ -15,6 +15,7 @@ from cfcontact.errors import (
     GeometryError,
     IgnoredOptionWarning,
     InputError,
+    MeshWarning,
     NotPositiveDefiniteError,
     PairingWarning,
     PathError,
@@ -78,7 +79,7 @@ def __getattr__(name):
 
 
 __all__ = [
-    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "IgnoredOptionWarning", "InputError",
+    "CfcontactError", "ConvergenceError", "EnumerationTooLarge", "GeometryError", "IgnoredOptionWarning", "InputError", "MeshWarning",
     "NotPositiveDefiniteError", "PairingWarning", "PathError", "SingularSystemError",
     "StartInterrupted", *_LAZY,
 ]

@@ -43,8 +43,9 @@ from mpi4py import MPI
 import ufl
 
 from cfcontact import compat, linalg, pairing as pairing_mod
-from cfcontact.errors import GeometryError, InputError, PairingWarning
+from cfcontact.errors import GeometryError, InputError, MeshWarning, PairingWarning
 from cfcontact.material import check_material, lame_parameters
+from cfcontact.meshes.common import CONVENTION, convention_mismatch, volume_problem
 from cfcontact.system import MAGNITUDE_LIMIT, ContactGeometry, ContactSystem, default_rho
 
 BODY1, BODY2 = 1, 2
@@ -114,6 +115,9 @@ def _resolve_tag(spec, groups, dim, what):
             return hits[0]
         if len(hits) > 1:
             raise GeometryError(f"{kind} name {spec!r} in {what} is ambiguous (numbers {sorted(hits)}); use a number")
+        convention = {name: key for key, name in CONVENTION.items()}.get(spec)
+        if convention is not None and convention[0] == dim and convention in groups:
+            return convention[1]  # (a convention group named otherwise: "Contact1", "interface" on 10)
     raise GeometryError(f"unknown {kind} {spec!r} in {what}; {valid}")
 
 
@@ -128,8 +132,14 @@ def _physical_groups(model):
     groups = {}
     for dim, num in model.getPhysicalGroups():
         groups[(int(dim), int(num))] = model.getPhysicalName(dim, num)
+    problem = volume_problem(model, groups)
+    if problem:
+        return groups, problem
     if not groups:
         return groups, "the gmsh model has no physical groups (DESIGN.md: body1=1, contact1=10, ...)"
+    problem = convention_mismatch(groups)
+    if problem:
+        return groups, problem
     if (2, BODY1) not in groups:
         return groups, f"the gmsh model has no 2-D physical group {BODY1} (body1); 2-D groups: {_describe(groups, 2)}"
     if (1, CONTACT1) not in groups:
@@ -151,14 +161,49 @@ def _physical_groups(model):
     if not etypes <= {2, 3} or len(etypes) != 1:
         return groups, ("only meshes of linear triangles or of linear quadrilaterals (one type) are supported; "
                         f"gmsh element types found: {sorted(etypes)}")
+    problem = _loose_lines(model, groups)
+    if problem:
+        return groups, problem
     tags, coords, _ = model.mesh.getNodes()
     tags = np.asarray(tags)
     if tags.size and not np.array_equal(np.sort(tags), np.arange(1, tags.size + 1)):
-        return groups, "gmsh node tags are not contiguous 1..N; call gmsh.model.mesh.renumberNodes() first"
-    z = np.asarray(coords).reshape(-1, 3)[:, 2]
-    if z.size and np.max(np.abs(z)) > 0:
-        return groups, "the mesh is not planar: nodes with z != 0 found (a 2-D model in the plane z = 0 is expected)"
+        return groups, ("gmsh node tags are not contiguous 1..N; call gmsh.model.mesh.renumberNodes() first (a .msh "
+                        "file is renumbered as it is read)")
+    xyz = np.asarray(coords).reshape(-1, 3)
+    extent = float(np.ptp(xyz[:, :2], axis=0).max(initial=0.0)) if xyz.size else 0.0
+    if xyz.size and np.ptp(xyz[:, 2]) > 1e-10 * extent:
+        return groups, (f"the mesh is not planar: its nodes' z runs from {xyz[:, 2].min():.6g} to {xyz[:, 2].max():.6g} "
+                        "(a 2-D model in a plane z = constant is expected)")
     return groups, None
+
+
+def _loose_lines(model, groups):
+    """A text naming a 1-D physical group with line elements that are no edge of any 2-D cell (a
+    curve drawn over a surface without being embedded in its mesh; dolfinx would abort on it),
+    else None."""
+    def corner_pairs(dim, entity=-1):
+        types, _, nodes = model.mesh.getElements(dim, entity)
+        for etype, tags in zip(types, nodes):
+            _, _, _, k, _, corners = model.mesh.getElementProperties(int(etype))
+            yield np.asarray(tags, dtype=np.int64).reshape(-1, k)[:, :corners]
+
+    edges = [np.sort(np.stack([c, np.roll(c, -1, axis=1)], axis=2).reshape(-1, 2), axis=1) for c in corner_pairs(2)]
+    if not edges:
+        return None
+    key = lambda pairs: pairs[:, 0] * (1 << 31) + pairs[:, 1]  # noqa: E731  (gmsh node tags < 2^31)
+    known = np.unique(key(np.concatenate(edges)))
+    for (dim, num), name in sorted(groups.items()):
+        if dim != 1:
+            continue
+        for entity in model.getEntitiesForPhysicalGroup(dim, num):
+            for lines in corner_pairs(1, entity):
+                loose = ~np.isin(key(np.sort(lines[:, :2], axis=1)), known)
+                if loose.any():
+                    label = f"{name}={num}" if name else str(num)
+                    return (f"{int(loose.sum())} line element(s) of the 1-D group {label} are no edge of any 2-D cell: "
+                            "the curve is not part of the surface mesh (gmsh: embed it in the surface, "
+                            "gmsh.model.mesh.embed, or make the geometry coherent)")
+    return None
 
 
 def _read_model(model_or_path, comm, root=0):
@@ -197,6 +242,7 @@ def _read_model(model_or_path, comm, root=0):
             else:
                 try:
                     gmsh.merge(source)
+                    model.mesh.renumberNodes()  # (a valid file may number its nodes with gaps: 1002, 1004, ...)
                 except Exception as exc:
                     err = f"gmsh cannot read {source!r}: {exc}"
             if err:
@@ -315,7 +361,40 @@ class _FemModel:
         # body of each node and of each boundary piece
         self.node_body = np.zeros(len(self.points), dtype=np.int64)
         self.node_body[self.cells.ravel()] = np.repeat(self.cell_body, self.cells.shape[1])
+        self._check_cells(np.abs(area))
+        # facets with a cell on both sides (a line inside a body) are not on the boundary
+        ends = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=2).reshape(-1, 2)
+        P = len(self.points)
+        edges, count = np.unique(ends.min(axis=1) * P + ends.max(axis=1), return_counts=True)
+        key = self.facet_nodes.min(axis=1) * P + self.facet_nodes.max(axis=1) if self.facet_nodes.size else np.empty(0)
+        at = np.searchsorted(edges, key)
+        self.facet_interior = (at < edges.size) & (edges[np.minimum(at, edges.size - 1)] == key) & \
+            (count[np.minimum(at, edges.size - 1)] > 1)
         self.timings = {"read": time.perf_counter() - t0}
+
+    def _check_cells(self, area):
+        """GeometryError for a cell of (nearly) zero area (its stiffness would be inf/nan) and for nodes
+        shared by cells of two bodies (bodies meshed as one coherent geometry: glued, not in contact)."""
+        P = self.points[self.cells]
+        longest = np.max(np.sum((P - np.roll(P, -1, axis=1)) ** 2, axis=2), axis=1)
+        flat = np.flatnonzero(area <= 1e-10 * longest)
+        if flat.size:
+            c = flat[0]
+            corners = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in P[c])
+            raise GeometryError(f"{flat.size} cell(s) of (nearly) zero area, e.g. one of body {int(self.cell_body[c])} "
+                                f"with corners {corners}: remesh (a degenerate cell has no stiffness)")
+        bodies = np.unique(self.cell_body)
+        if bodies.size > 1:
+            seen = np.zeros((len(self.points), bodies.size), dtype=bool)
+            for k, b in enumerate(bodies):
+                seen[np.unique(self.cells[self.cell_body == b]), k] = True
+            shared = np.flatnonzero(seen.sum(axis=1) > 1)
+            if shared.size:
+                where = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in self.points[shared[:4]])
+                raise GeometryError(
+                    f"bodies {' and '.join(str(int(b)) for b in bodies)} share {shared.size} mesh node(s), e.g. at {where}: "
+                    "they would be glued there, not in contact. Mesh each body with its own nodes along the interface "
+                    "(in gmsh, do not fragment or make coherent the two surfaces: contact1 and contact2 are two curves)")
 
     # --------------------------------------------------------------- helpers
     def node_index(self, orig):
@@ -650,29 +729,18 @@ def assemble_contact_system(
     trac = [_parse_tractions(tractions1, groups, "tractions1"), _parse_tractions(tractions2, groups, "tractions2")]
     for k, t in enumerate(trac):
         _check_windows(fem, t, groups, f"tractions{k + 1}")
+        for tag in sorted({tag for tag, _ in t}):
+            inside = fem.facet_interior[fem.facet_tag == tag]
+            if inside.any():
+                raise GeometryError(f"tractions{k + 1}: {_tag_label(groups, 1, tag)} (1-D group) lies inside a body "
+                                    f"({int(inside.sum())} of its {inside.size} facets have a cell on both sides); "
+                                    "tractions act on boundary pieces (a force inside a body: split it along the line)")
     bforce = [_parse_body_force(body_force1, groups, "body_force1"), _parse_body_force(body_force2, groups, "body_force2")]
 
     # ------------------------------------------------------ Dirichlet / bodies
     fixed, u_D = _prescribed_dofs(fem, clamp_tags, dir_items, groups)
     constrained = fixed.any(axis=1)  # nodes with some prescribed component
-    tag_bodies = fem.tag_bodies()
-    for body in np.unique(fem.cell_body):
-        body_nodes = np.unique(fem.cells[fem.cell_body == body])
-        if np.count_nonzero(constrained[body_nodes]) < 2:
-            pieces = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
-                      if bs == [int(body)] and t not in (CONTACT1, CONTACT2)]
-            used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
-            raise InputError(
-                f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'}) has no Dirichlet condition: "
-                f"none of the clamped boundary pieces ({used}) lies on it, so its stiffness is singular "
-                f"(rigid-body motions). Clamp one of its boundary pieces"
-                + (f", e.g. one of: {', '.join(pieces)}" if pieces else "")
-            )
-        for comp, axis in ((0, "x"), (1, "y")):
-            if not fixed[body_nodes, comp].any():
-                raise InputError(f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'}) has no prescribed "
-                                 f"{axis} component: it can move freely in {axis} (its stiffness is singular); "
-                                 f"clamp one of its boundary pieces or prescribe {axis} on one (dirichlet)")
+    _check_supports(fem, fixed, groups, clamp_tags)
     contact_nodes_all = np.unique(np.concatenate([fem.facet_tag_nodes(t).ravel() for t in (CONTACT1, CONTACT2)]))
     moving = fixed & ((u_D[0] != 0.0) | (u_D[1] != 0.0))
     bad = contact_nodes_all[moving[contact_nodes_all].any(axis=1)]
@@ -843,6 +911,93 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
                                        snap=tol, slave_name="contact2", master_name="contact1", fixed=fixed)
 
 
+def _check_supports(fem, fixed, groups, clamp_tags):
+    """InputError for a piece of a body that the prescribed displacements leave free to move as a
+    rigid body (its stiffness would be singular: every body needs supports of its own, contact
+    does not hold it): each connected piece of each body's cells must have prescribed components
+    that fix both translations and the rotation.  A body of several pieces whose nodes coincide
+    (surfaces meshed without being joined) is named as such."""
+    from scipy.sparse.csgraph import connected_components
+
+    constrained = fixed.any(axis=1)
+    tag_bodies = fem.tag_bodies()
+    P = len(fem.points)
+    for body in np.unique(fem.cell_body):
+        cells = fem.cells[fem.cell_body == body]
+        k = cells.shape[1]
+        rows = np.repeat(cells[:, 0], k - 1)
+        graph = sp.coo_matrix((np.ones(rows.size), (rows, cells[:, 1:].ravel())), shape=(P, P))
+        _, label = connected_components(graph, directed=False)
+        nodes = np.unique(cells)
+        pieces = np.unique(label[nodes])
+        name = f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'})"
+        for piece in pieces:
+            at = nodes[label[nodes] == piece]
+            where = name
+            if pieces.size > 1:
+                lo, hi = fem.points[at].min(axis=0), fem.points[at].max(axis=0)
+                where = (f"the piece of {name} within x in [{lo[0]:.6g}, {hi[0]:.6g}], y in [{lo[1]:.6g}, {hi[1]:.6g}] "
+                         f"(the body has {pieces.size} pieces that share no node{_coinciding(fem.points, label, nodes)})")
+            free = _free_motion(fem.points[at], fixed[at])
+            if free is None:
+                if pieces.size > 1 and piece == pieces[0] and _coinciding(fem.points, label, nodes):
+                    warnings.warn(f"{name} is made of {pieces.size} pieces that share no node"
+                                  f"{_coinciding(fem.points, label, nodes)}; each piece is held by its own supports",
+                                  MeshWarning, stacklevel=3)
+                continue
+            if not constrained[at].any():
+                on_it = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
+                         if bs == [int(body)] and t not in (CONTACT1, CONTACT2)]
+                used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
+                raise InputError(
+                    f"{where} has no Dirichlet condition: none of the clamped boundary pieces ({used}) lies on it, so "
+                    f"its stiffness is singular (rigid-body motions). Clamp one of its boundary pieces"
+                    + (f", e.g. one of: {', '.join(on_it)}" if on_it and pieces.size == 1 else ""))
+            raise InputError(f"{where} {free}: its stiffness is singular; clamp one of its boundary pieces or prescribe "
+                             "more displacement components (dirichlet)")
+
+
+def _free_motion(points, fixed):
+    """None when the prescribed components ``fixed`` (k, 2) of the nodes at ``points`` (k, 2) hold
+    every rigid motion of them, else what they leave free ("can move freely in x", "can rotate
+    about (x, y)")."""
+    if not fixed[:, 0].any():
+        return "has no prescribed x component: it can move freely in x"
+    if not fixed[:, 1].any():
+        return "has no prescribed y component: it can move freely in y"
+    centre = points.mean(axis=0)
+    size = max(float(np.ptp(points, axis=0).max(initial=0.0)), 1e-300)
+    r = (points - centre) / size
+    # rigid motion (a, b, c): u = (a - c r_y, b + c r_x); each prescribed component is one row
+    fx, fy = fixed[:, 0], fixed[:, 1]
+    A = np.vstack([np.column_stack([np.ones(fx.sum()), np.zeros(fx.sum()), -r[fx, 1]]),
+                   np.column_stack([np.zeros(fy.sum()), np.ones(fy.sum()), r[fy, 0]])])
+    sv = np.linalg.svd(A, compute_uv=False)
+    if sv[-1] > 1e-9 * sv[0]:
+        return None
+    _, _, vt = np.linalg.svd(A)
+    a, b, c = vt[-1]
+    # the free motion is a rotation about the point where its velocity vanishes
+    pivot = centre + size * np.array([-b / c, a / c]) if abs(c) > 1e-12 else centre
+    pivot = np.where(np.abs(pivot) <= 1e-12 * (size + np.abs(centre).max()), 0.0, pivot)  # (rounding of a zero)
+    return f"can rotate about ({pivot[0]:.6g}, {pivot[1]:.6g}) (its prescribed components do not hold the rotation)"
+
+
+def _coinciding(points, label, nodes) -> str:
+    """"; nodes of different pieces coincide at (x, y), ...: surfaces meshed without being joined"
+    when they do (else "")."""
+    xy = points[nodes]
+    scale = max(float(np.ptp(xy, axis=0).max(initial=0.0)), 1e-300)
+    order = np.lexsort((xy[:, 1], xy[:, 0]))
+    close = np.all(np.abs(np.diff(xy[order], axis=0)) <= 1e-12 * scale, axis=1)
+    pairs = [(order[i], order[i + 1]) for i in np.flatnonzero(close) if label[nodes[order[i]]] != label[nodes[order[i + 1]]]]
+    if not pairs:
+        return ""
+    where = "; ".join(f"({xy[i, 0]:.6g}, {xy[i, 1]:.6g})" for i, _ in pairs[:3])
+    return (f"; nodes of different pieces coincide at {len(pairs)} point(s), e.g. {where}: surfaces meshed without "
+            "being joined -- make the geometry coherent if they are one body")
+
+
 def _contact_facets(fem, tag, body):
     """(facets (F, 2), centroids of their cells (F, 2)) of a contact boundary, checked."""
     name = f"contact{body} (1-D group {tag})"
@@ -851,16 +1006,22 @@ def _contact_facets(fem, tag, body):
         raise GeometryError(f"{name} has no facets in the mesh")
     if np.any(fem.node_body[facets.ravel()] != body):
         raise GeometryError(f"{name} must lie on the boundary of body{body} (2-D group {body})")
+    inside = fem.facet_interior[fem.facet_tag == tag]
+    if inside.any():
+        raise GeometryError(f"{name} lies inside body{body}: {int(inside.sum())} of its {len(facets)} facets have a cell "
+                            "on both sides; a contact boundary is a piece of the body's boundary")
     return facets, fem.facet_centroid[fem.facet_tag == tag]
 
 
 def _pairing_meta(pr, points, pairing, slave_tag, groups, search_distance, obstacle, dropped):
     """``info["contact"]``: how the contact pairs were formed (for ``cfcontact info``)."""
     excluded = np.asarray(points)[pr.excluded]
+    slave = slave_tag if pairing == "segment" and obstacle is None else CONTACT1
     return {
         "pairing": pairing,
-        "slave": _tag_label(groups, 1, slave_tag) if pairing == "segment" and obstacle is None else
-        _tag_label(groups, 1, CONTACT1),
+        "slave": _tag_label(groups, 1, slave),
+        "master": ("obstacle" if obstacle is not None else "rigid foundation" if (1, CONTACT2) not in groups
+                   else _tag_label(groups, 1, CONTACT1 + CONTACT2 - slave)),
         "search_distance": search_distance,
         "obstacle": None if obstacle is None else obstacle.to_dict(),
         "pairs": pr.m,

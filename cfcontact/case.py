@@ -813,6 +813,7 @@ def _model_groups(kind, geometry) -> dict:
 
     python_sigint()
     from cfcontact import compat
+    from cfcontact.meshes.common import convention_mismatch, volume_problem
 
     with compat.gmsh_model("cfcontact-cli-probe") as model:
         try:
@@ -820,12 +821,14 @@ def _model_groups(kind, geometry) -> dict:
         except Exception as exc:
             raise CaseError(f"[geometry] file: gmsh cannot read {geometry['file']!r}: {exc}") from None
         groups = {(int(d), int(n)): model.getPhysicalName(d, n) for d, n in model.getPhysicalGroups()}
+        problem = volume_problem(model, groups)
+    if problem:
+        raise CaseError(f"[geometry] file: {geometry['file']!r}: {problem}")
     _check_msh_groups(groups, geometry["file"])
+    problem = convention_mismatch(groups)
+    if problem:
+        raise CaseError(f"[geometry] file: {geometry['file']!r}: {problem}")
     return groups
-
-
-#: The physical groups of the tag convention a .msh must name (DESIGN.md, docs/geometry.md)
-_NAMED_GROUPS = {(2, 1): "body1", (2, 2): "body2", (1, 10): "contact1", (1, 20): "contact2"}
 
 
 def _check_msh_groups(groups, file):
@@ -837,8 +840,10 @@ def _check_msh_groups(groups, file):
     if not groups:
         raise CaseError(f"[geometry] file: {file!r} has no physical groups; a .msh needs the named physical groups "
                         f"of the tag convention: {convention}")
+    from cfcontact.meshes.common import CONVENTION
+
     unnamed = [(d, n) for (d, n), name in sorted(groups.items()) if not name]
-    wrong = [(d, n) for (d, n), want in _NAMED_GROUPS.items() if (d, n) in groups and groups[(d, n)] != want]
+    wrong = [(d, n) for (d, n), want in CONVENTION.items() if (d, n) in groups and groups[(d, n)] != want]
     if unnamed and (wrong or len(unnamed) == len(groups)):
         found = ", ".join(f"{n} ({d}-D)" for d, n in unnamed)
         raise CaseError(f"[geometry] file: {file!r} has physical groups without names ({found}"

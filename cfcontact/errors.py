@@ -93,3 +93,8 @@ class PairingWarning(UserWarning):
 class IgnoredOptionWarning(UserWarning):
     """A path option given explicitly that the chosen method does not use (``tree=True`` with
     ``method="seed"``, a seed step option with ``method="exact"``): the run goes on without it."""
+
+
+class MeshWarning(UserWarning):
+    """Something in a mesh that is valid but rarely meant: a body made of pieces that share no node
+    while some of their nodes coincide (surfaces meshed without being joined).  The model is built."""

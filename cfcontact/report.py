@@ -78,8 +78,8 @@ def contact_report(path=None, *, system=None, declared=None) -> dict:
         info = system.info.get("contact", {})
         rigid = bool(system.info.get("rigid_foundation"))
         slave = info.get("slave")
-        master = ("obstacle" if info.get("obstacle") else "rigid foundation" if rigid else
-                  {"contact1=10": "contact2=20", "contact2=20": "contact1=10"}.get(slave))
+        master = info.get("master") or ("obstacle" if info.get("obstacle") else "rigid foundation" if rigid else
+                                        {"contact1=10": "contact2=20", "contact2=20": "contact1=10"}.get(slave))
         return {"source": "model", "pairing": info.get("pairing"), "slave": slave, "master": master,
                 "pairs": system.m, "excluded": info.get("excluded"), "excluded_reasons": info.get("excluded_reasons"),
                 "dropped_prescribed": info.get("dropped_prescribed"), "search_distance": info.get("search_distance"),

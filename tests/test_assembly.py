@@ -333,6 +333,46 @@ def test_msh_file_matches_model(tmp_path):
     assert A.friction == 0.4 and A.rho == pytest.approx(B.rho, rel=1e-12)
 
 
+def test_a_msh_with_node_numbers_with_gaps_in_the_plane_z_half(tmp_path):
+    """A valid MSH 2.2 file whose node numbers run 2, 4, 6, ... and whose nodes lie in the plane
+    z = 0.5 (a mesh written by another tool): renumbered as it is read and taken in its plane; the
+    same system as the file numbered 1..N in z = 0.  Nodes off one plane are still refused."""
+    import gmsh
+
+    original = tmp_path / "blocks.msh"
+    with compat.gmsh_model("blocks"):
+        geo().build(nx=5, ny=2, cell="triangle")
+        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+        gmsh.write(str(original))
+    lines = original.read_text().splitlines()
+    out, section, count = [], None, 0
+    for line in lines:
+        if line.startswith("$"):
+            section, count = line, 0
+            out.append(line)
+            continue
+        count += 1
+        words = line.split()
+        if section == "$Nodes" and count > 1:
+            words = [str(2 * int(words[0])), words[1], words[2], str(float(words[3]) + 0.5)]
+        elif section == "$Elements" and count > 1:
+            k = 3 + int(words[2])
+            words = words[:k] + [str(2 * int(w)) for w in words[k:]]
+        out.append(" ".join(words))
+    moved = tmp_path / "moved.msh"
+    moved.write_text("\n".join(out) + "\n")
+    kw = dict(tractions1={"top1": (1.0, -2.0)}, friction=0.4)
+    A, B = assemble_contact_system(str(moved), **kw), assemble_contact_system(str(original), **kw)
+    for X, Y in zip(A.to_scipy(), B.to_scipy()):
+        X = X.toarray() if sp.issparse(X) else X
+        Y = Y.toarray() if sp.issparse(Y) else Y
+        np.testing.assert_allclose(X, Y, rtol=0, atol=1e-12 * np.abs(Y).max())
+    tilted = tmp_path / "tilted.msh"
+    tilted.write_text(moved.read_text().replace(" 0.5\n", " 0.5000001\n", 1))
+    with pytest.raises(GeometryError, match="the mesh is not planar: its nodes' z runs from 0.5 to 0.5"):
+        assemble_contact_system(str(tilted), **kw)
+
+
 def test_material_per_body():
     """The bodies share no nodes, so K is block diagonal by body: each block must equal the block of a
     one-material model with that body's E and nu."""
@@ -427,3 +467,165 @@ def test_mpi_matches_serial(tmp_path, run_mpi):
                 continue
             scale = max(np.abs(ref).max(), 1e-300) if ref.size else 1.0
             assert np.abs(got - ref).max(initial=0.0) <= 1e-12 * scale, (name, key)
+
+
+# ------------------------------------------------------------ users' own meshes
+def _rect(geo_, x0, y0, x1, y1, nx, ny, structured=True):
+    """A rectangle in the current gmsh model, nx x ny cells along its edges (a structured mesh
+    unless ``structured`` is False): (surface, [bottom, right, top, left])."""
+    p = [geo_.addPoint(x, y, 0.0) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
+    lines = [geo_.addLine(p[i], p[(i + 1) % 4]) for i in range(4)]
+    surface = geo_.addPlaneSurface([geo_.addCurveLoop(lines)])
+    for line, k in zip(lines, (nx, ny, nx, ny)):
+        geo_.mesh.setTransfiniteCurve(line, k + 1)
+    if structured:
+        geo_.mesh.setTransfiniteSurface(surface)
+    return surface, lines
+
+
+def _groups(model, groups):
+    for (dim, num), (name, tags) in groups.items():
+        model.addPhysicalGroup(dim, tags, num)
+        if name:
+            model.setPhysicalName(dim, num, name)
+
+
+def _user_blocks(model, variant):
+    """Two 3 x 1 blocks (body1 on top, 6 x 2 triangles each) as a user might mesh them:
+    "shared" (the bodies share the interface line and its nodes), "embedded" (a line inside body1,
+    group 16 "inner1"), "split" / "split-float" (body1 two rectangles with coinciding but distinct
+    nodes at y = 0.5, both held or only the upper one)."""
+    geo_ = model.geo
+    s2, (b2, r2, t2, l2) = _rect(geo_, 0.0, -1.0, 3.0, 0.0, 6, 2)
+    if variant == "shared":  # body1's bottom is body2's top line t2, from (3, 0) (point 3) to (0, 0) (point 4)
+        p = [geo_.addPoint(x, y, 0.0) for x, y in ((3.0, 1.0), (0.0, 1.0))]
+        r1, top, l1 = geo_.addLine(3, p[0]), geo_.addLine(p[0], p[1]), geo_.addLine(p[1], 4)
+        s1 = geo_.addPlaneSurface([geo_.addCurveLoop([-t2, r1, top, l1])])
+        for line, k in ((r1, 2), (top, 6), (l1, 2)):
+            geo_.mesh.setTransfiniteCurve(line, k + 1)
+        geo_.mesh.setTransfiniteSurface(s1)
+        bodies1, contact1, tops, lefts = [s1], [t2], [top], [l1]
+    elif variant.startswith("split"):
+        s1, (c1, r1, _, l1) = _rect(geo_, 0.0, 0.0, 3.0, 0.5, 6, 1)
+        s1b, (_, r1b, top, l1b) = _rect(geo_, 0.0, 0.5, 3.0, 1.0, 6, 1)
+        bodies1, contact1, tops, lefts = [s1, s1b], [c1], [top], [l1b] if variant == "split-float" else [l1, l1b]
+    else:  # (an embedded curve needs an unstructured mesh: a transfinite one ignores it)
+        s1, (c1, r1, top, l1) = _rect(geo_, 0.0, 0.0, 3.0, 1.0, 6, 2, structured=variant != "embedded")
+        bodies1, contact1, tops, lefts = [s1], [c1], [top], [l1]
+    groups = {(2, 1): ("body1", bodies1), (2, 2): ("body2", [s2]), (1, 10): ("contact1", contact1),
+              (1, 20): ("contact2", [t2]), (1, 12): ("top1", tops), (1, 14): ("left1", lefts),
+              (1, 22): ("bottom2", [b2])}
+    if variant in ("embedded", "drawn"):  # a line inside body1: embedded in its mesh, or only drawn over it
+        a, b = geo_.addPoint(0.5, 0.5, 0.0), geo_.addPoint(2.5, 0.5, 0.0)
+        inner = geo_.addLine(a, b)
+        geo_.mesh.setTransfiniteCurve(inner, 5)
+        geo_.synchronize()
+        if variant == "embedded":
+            model.mesh.embed(1, [inner], 2, bodies1[0])
+        groups[(1, 16)] = ("inner1", [inner])
+    geo_.synchronize()
+    _groups(model, groups)
+    model.mesh.generate(2)
+
+
+def _assemble_user(variant, **kw):
+    kw = {"clamp": ("left1", "bottom2"), "tractions1": {"top1": (0.0, -1e6)}, "tractions2": {}, **kw}
+    with compat.gmsh_model(variant) as model:
+        _user_blocks(model, variant)
+        return assemble_contact_system(model, **kw)
+
+
+def test_bodies_meshed_with_shared_interface_nodes_are_refused():
+    """Bodies meshed as one coherent geometry share their interface nodes: they would be glued
+    there.  Named as such, not as a contact boundary off its body."""
+    with pytest.raises(GeometryError, match=r"bodies 1 and 2 share 7 mesh node\(s\).*glued.*its own nodes"):
+        _assemble_user("shared")
+
+
+def test_tractions_and_contact_on_a_line_inside_a_body_are_refused():
+    """A 1-D group embedded in a body has a cell on both sides of each facet: a traction there
+    would be dropped (boundary integrals only) and a contact boundary there has no outside."""
+    with pytest.raises(GeometryError, match=r"tractions1: inner1=16 \(1-D group\) lies inside a body \(4 of its 4"):
+        _assemble_user("embedded", tractions1={"inner1": (0.0, -1e6)})
+    system = _assemble_user("embedded", dirichlet={"inner1": {"x": 0.0}})  # (a support inside a body is fine)
+    assert system.m == 7
+    # a line drawn over the surface but not embedded: its elements are no cell's edges (dolfinx aborted)
+    with pytest.raises(GeometryError, match=r"4 line element\(s\) of the 1-D group inner1=16 are no edge of any 2-D "
+                                            r"cell.*embed"):
+        _assemble_user("drawn")
+
+
+def test_a_body_of_two_unjoined_pieces():
+    """Body 1 meshed as two rectangles that share no node (coinciding nodes at y = 0.5): with both
+    pieces held it is built, with a MeshWarning naming the coinciding nodes; with the lower piece
+    free the error names that piece, not the body, and the coinciding nodes."""
+    from cfcontact.errors import MeshWarning
+
+    with pytest.warns(MeshWarning, match=r"body 1 \(body1\) is made of 2 pieces .* coincide at 2 point\(s\)"):
+        system = _assemble_user("split")
+    assert system.m == 7
+    with pytest.raises(InputError, match=r"the piece of body 1 \(body1\) within x in \[0, 3\], y in \[0, 0.5\] .*"
+                                         r"coincide .* has no Dirichlet condition"):
+        _assemble_user("split-float")
+
+
+def test_supports_that_leave_a_rigid_motion_free_are_named():
+    """x held on a horizontal edge and y on a vertical one leave the rotation about their meeting
+    point free (K singular: it had reached the solvers as a factorization breakdown)."""
+    with pytest.raises(InputError, match=r"body 1 \(body1\) can rotate about \(0, 0.5\)"):
+        two_blocks(nx=3, ny=1, length=2.0, height=0.5, clamp=("left2",), dirichlet={"top1": {"x": 0.0},
+                                                                                        "left1": {"y": 0.0}})
+    with pytest.raises(InputError, match=r"body 1 \(body1\) has no prescribed y component"):
+        two_blocks(nx=3, ny=1, clamp=("left2",), dirichlet={"left1": {"x": 0.0}})
+    assert two_blocks(nx=3, ny=1, clamp=("left2",), dirichlet={"left1": {"x": 0.0}, "top1": {"y": 0.0}}).m == 4
+
+
+def _renamed(renames, **kw):
+    with compat.gmsh_model("renamed") as model:
+        geo().build(nx=3, ny=1, cell="triangle")
+        for dim, num in renames:  # (gmsh keeps a name on its group until it is removed)
+            model.removePhysicalName(model.getPhysicalName(dim, num))
+        for (dim, num), name in renames.items():
+            model.setPhysicalName(dim, num, name)
+        return assemble_contact_system(model, **kw)
+
+
+def test_the_tag_convention_is_read_by_number_and_contradicting_names_are_refused():
+    """Bodies named against their numbers (body1 on 2) would take one body's material by name and
+    the other's geometry by number: refused naming the group.  A convention number with a name of
+    its own ("interface" on 10, "Contact2" on 20) is that convention group."""
+    with pytest.raises(GeometryError, match=r"physical group 1 \(2-D\) is named 'body2', but the tag convention has "
+                                            r"body2=2"):
+        _renamed({(2, 1): "body2", (2, 2): "body1"}, E={"body1": 2e11, "body2": 2e8})
+    system = _renamed({(1, 10): "interface", (1, 20): "Contact2"})
+    assert system.m == _renamed({}).m == 3 and system.info["contact"]["slave"] == "interface=10"
+    from cfcontact.report import contact_report
+
+    assert contact_report(system=system)["master"] == "Contact2=20"
+
+
+def test_a_3d_mesh_is_refused_as_3d():
+    with compat.gmsh_model("box") as model:
+        box = model.occ.addBox(0, 0, 0, 1, 1, 1)
+        model.occ.synchronize()
+        model.addPhysicalGroup(3, [box], 1)
+        model.setPhysicalName(3, 1, "body1")
+        model.mesh.generate(3)
+        with pytest.raises(GeometryError, match=r"the mesh is 3-D \(3-D physical groups: body1=1\).*2-D mesh"):
+            assemble_contact_system(model)
+
+
+def test_a_cell_of_zero_area_is_named():
+    """Three collinear nodes make a cell without stiffness (its K entries inf/nan, which had been
+    blamed on E): refused naming the cell's corners."""
+    with compat.gmsh_model("flat") as model:
+        surface = model.addDiscreteEntity(2)
+        line = model.addDiscreteEntity(1)
+        xy = [(0, 0), (1, 0), (1, 1), (0, 1), (0.5, 1.0)]
+        model.mesh.addNodes(2, surface, list(range(1, 6)), [c for x, y in xy for c in (x, y, 0.0)])
+        model.mesh.addElementsByType(surface, 2, [], [1, 2, 5, 1, 5, 4, 2, 3, 5, 4, 5, 3])  # (the last: flat)
+        model.mesh.addElementsByType(line, 1, [], [1, 2])
+        _groups(model, {(2, 1): ("body1", [surface]), (1, 10): ("contact1", [line])})
+        with pytest.raises(GeometryError, match=r"1 cell\(s\) of \(nearly\) zero area.*corners \(0, 1\); \(0.5, 1\); "
+                                                r"\(1, 1\)"):
+            assemble_contact_system(model, clamp=(), dirichlet=None)

@@ -202,14 +202,22 @@ gmsh.initialize(); gmsh.option.setNumber("General.Terminal", 0); gmsh.model.add(
 occ = gmsh.model.occ
 r1, r2 = occ.addRectangle(0, 0, 0, 3, 1), occ.addRectangle(0, -1, 0, 3, 1)
 occ.synchronize()
-if sys.argv[2] == "unnamed":  # the tag convention's numbers, no names
+if sys.argv[2] in ("unnamed", "swapped"):  # the tag convention's numbers, no names / bodies' names swapped
     gmsh.model.addPhysicalGroup(2, [r1], 1); gmsh.model.addPhysicalGroup(2, [r2], 2)
     for body, r, tags in ((1, r1, (10, 12, 14)), (2, r2, (20, 22))):
         curves = [c for _, c in gmsh.model.getBoundary([(2, r)], oriented=False)]
         for tag, c in zip(tags, curves):
             gmsh.model.addPhysicalGroup(1, [c], tag)
+    if sys.argv[2] == "swapped":
+        for (dim, num), name in {(2, 1): "body2", (2, 2): "body1", (1, 10): "contact1", (1, 20): "contact2",
+                                 (1, 12): "top1", (1, 14): "left1", (1, 22): "bottom2"}.items():
+            gmsh.model.setPhysicalName(dim, num, name)
+if sys.argv[2] == "3d":
+    box = occ.addBox(5, 0, 0, 1, 1, 1)
+    occ.synchronize()
+    gmsh.model.addPhysicalGroup(3, [box], 1); gmsh.model.setPhysicalName(3, 1, "body1")
 gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
-gmsh.model.mesh.generate(2)
+gmsh.model.mesh.generate(3 if sys.argv[2] == "3d" else 2)
 gmsh.write(sys.argv[1]); gmsh.finalize()
 """
 
@@ -218,10 +226,13 @@ gmsh.write(sys.argv[1]); gmsh.finalize()
     ("unnamed", ["[geometry] file", "physical groups without names", "10 (1-D)", "1 (2-D)", "none is named",
                  "body1=1", "contact1=10", "Tag convention"]),
     ("none", ["[geometry] file", "has no physical groups", "body1=1", "contact1=10"]),
+    ("swapped", ["[geometry] file", "physical group 1 (2-D) is named 'body2'", "tag convention has body2=2"]),
+    ("3d", ["[geometry] file", "the mesh is 3-D (3-D physical groups: body1=1)", "2-D mesh"]),
 ])
 def test_msh_without_named_physical_groups(tmp_path, how, words):
-    """A .msh whose groups are numbered but unnamed, or that has no physical groups at all: one
-    message about the file (not an unknown clamp tag, nor a slave the case never set)."""
+    """A .msh whose groups are numbered but unnamed, that has no physical groups at all, whose
+    bodies' names are swapped against their numbers, or that is 3-D: one message about the file
+    (not an unknown clamp tag, nor a slave the case never set)."""
     msh = tmp_path / "m.msh"
     subprocess.run([sys.executable, "-c", MSH_SCRIPT, str(msh), how], check=True, timeout=120)
     text = ('[geometry]\nkind = "msh"\nfile = "m.msh"\n[loads]\nclamp = [14, 22]\n[loads.f1]\n12 = [0.0, -1e8]\n'

@@ -30,6 +30,41 @@ TAGS = {
     "sym2": (1, 25),
 }
 
+#: The groups every model names and numbers alike: (dim, number) -> name.
+CONVENTION = {TAGS[name]: name for name in ("body1", "body2", "contact1", "contact2")}
+
+
+def _groups_text(groups, dim) -> str:
+    items = sorted((num, name) for (d, num), name in groups.items() if d == dim)
+    return ", ".join(f"{name}={num}" if name else str(num) for num, name in items) or "(none)"
+
+
+def convention_mismatch(groups) -> str | None:
+    """A text naming a physical group whose name is one of the tag convention's (body1, body2,
+    contact1, contact2, in any letter case) on another number -- body1 and body2 swapped, say, whose
+    contact normal would follow the numbers and whose per-body material the names -- else None.  A
+    convention number with a name of its own ("interface" on 10) is fine.  ``groups``: {(dim,
+    number): name}."""
+    by_name = {name: key for key, name in CONVENTION.items()}
+    for (dim, num), name in sorted(groups.items()):
+        want = by_name.get((name or "").strip().lower())
+        if want is not None and want != (dim, num):
+            return (f"physical group {num} ({dim}-D) is named {name!r}, but the tag convention has "
+                    f"{CONVENTION[want]}={want[1]} ({want[0]}-D): number the groups body1=1, body2=2, contact1=10, "
+                    "contact2=20 (the numbers decide which body is which)")
+    return None
+
+
+def volume_problem(model, groups) -> str | None:
+    """A text saying that the gmsh ``model`` is 3-D (3-D physical groups or elements), else None."""
+    _, elements, _ = model.mesh.getElements(3)
+    if not any(d == 3 for d, _ in groups) and not any(len(tags) for tags in elements):
+        return None
+    what = f"3-D physical groups: {_groups_text(groups, 3)}" if any(d == 3 for d, _ in groups) else "it has 3-D elements"
+    return (f"the mesh is 3-D ({what}); cfcontact models plane problems: give a 2-D mesh in the plane z = 0 "
+            "(gmsh: mesh.generate(2) of a 2-D geometry)")
+
+
 CELLS = ("quadrilateral", "triangle")
 _CELL_ALIASES = {"quadrilateral": "quadrilateral", "quad": "quadrilateral", "quadrilaterals": "quadrilateral",
                  "triangle": "triangle", "tri": "triangle", "triangles": "triangle"}
