@@ -383,18 +383,14 @@ class _FemModel:
             corners = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in P[c])
             raise GeometryError(f"{flat.size} cell(s) of (nearly) zero area, e.g. one of body {int(self.cell_body[c])} "
                                 f"with corners {corners}: remesh (a degenerate cell has no stiffness)")
-        bodies = np.unique(self.cell_body)
-        if bodies.size > 1:
-            seen = np.zeros((len(self.points), bodies.size), dtype=bool)
-            for k, b in enumerate(bodies):
-                seen[np.unique(self.cells[self.cell_body == b]), k] = True
-            shared = np.flatnonzero(seen.sum(axis=1) > 1)
-            if shared.size:
-                where = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in self.points[shared[:4]])
-                raise GeometryError(
-                    f"bodies {' and '.join(str(int(b)) for b in bodies)} share {shared.size} mesh node(s), e.g. at {where}: "
-                    "they would be glued there, not in contact. Mesh each body with its own nodes along the interface "
-                    "(in gmsh, do not fragment or make coherent the two surfaces: contact1 and contact2 are two curves)")
+        # (other 2-D groups may share nodes with a body: parts of it of another material, bonded)
+        shared = np.intersect1d(self.cells[self.cell_body == BODY1], self.cells[self.cell_body == BODY2])
+        if shared.size:
+            where = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in self.points[shared[:4]])
+            raise GeometryError(
+                f"body1 and body2 share {shared.size} mesh node(s), e.g. at {where}: they would be glued there, not in "
+                "contact. Mesh each body with its own nodes along the interface (in gmsh, do not fragment or make "
+                "coherent the two surfaces: contact1 and contact2 are two curves)")
 
     # --------------------------------------------------------------- helpers
     def node_index(self, orig):
@@ -931,19 +927,16 @@ def _check_supports(fem, fixed, groups, clamp_tags):
         nodes = np.unique(cells)
         pieces = np.unique(label[nodes])
         name = f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'})"
+        joined = _coinciding(fem.points, label, nodes) if pieces.size > 1 else ""
         for piece in pieces:
             at = nodes[label[nodes] == piece]
             where = name
             if pieces.size > 1:
                 lo, hi = fem.points[at].min(axis=0), fem.points[at].max(axis=0)
                 where = (f"the piece of {name} within x in [{lo[0]:.6g}, {hi[0]:.6g}], y in [{lo[1]:.6g}, {hi[1]:.6g}] "
-                         f"(the body has {pieces.size} pieces that share no node{_coinciding(fem.points, label, nodes)})")
+                         f"(the body has {pieces.size} pieces that share no node{joined})")
             free = _free_motion(fem.points[at], fixed[at])
             if free is None:
-                if pieces.size > 1 and piece == pieces[0] and _coinciding(fem.points, label, nodes):
-                    warnings.warn(f"{name} is made of {pieces.size} pieces that share no node"
-                                  f"{_coinciding(fem.points, label, nodes)}; each piece is held by its own supports",
-                                  MeshWarning, stacklevel=3)
                 continue
             if not constrained[at].any():
                 on_it = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
@@ -955,6 +948,9 @@ def _check_supports(fem, fixed, groups, clamp_tags):
                     + (f", e.g. one of: {', '.join(on_it)}" if on_it and pieces.size == 1 else ""))
             raise InputError(f"{where} {free}: its stiffness is singular; clamp one of its boundary pieces or prescribe "
                              "more displacement components (dirichlet)")
+        if joined:
+            warnings.warn(f"{name} is made of {pieces.size} pieces that share no node{joined}; each piece is held by its "
+                          "own supports", MeshWarning, stacklevel=3)
 
 
 def _free_motion(points, fixed):

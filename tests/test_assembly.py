@@ -538,7 +538,7 @@ def _assemble_user(variant, **kw):
 def test_bodies_meshed_with_shared_interface_nodes_are_refused():
     """Bodies meshed as one coherent geometry share their interface nodes: they would be glued
     there.  Named as such, not as a contact boundary off its body."""
-    with pytest.raises(GeometryError, match=r"bodies 1 and 2 share 7 mesh node\(s\).*glued.*its own nodes"):
+    with pytest.raises(GeometryError, match=r"body1 and body2 share 7 mesh node\(s\).*glued.*its own nodes"):
         _assemble_user("shared")
 
 
