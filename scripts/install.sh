@@ -149,6 +149,11 @@ if [ "$CODENAME" = bookworm ]; then
 import numpy, matplotlib
 print(f"numpy=={numpy.__version__}")
 print(f"matplotlib=={matplotlib.__version__}")
+try:  # Debian's Sphinx Markdown parser needs markdown-it-py < 3 (pyvista's rich would pull 4)
+    import myst_parser  # noqa: F401
+    print("markdown-it-py<3")
+except ImportError:
+    pass
 EOF
     have=$("$VENV/bin/python" -c 'import importlib.metadata as m
 try: print(m.version("pyvista"), m.version("vtk"))
