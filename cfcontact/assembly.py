@@ -908,88 +908,135 @@ def _contact_pairing(fem, rigid, pairing, slave_tag, search_distance, obstacle, 
 
 
 def _check_supports(fem, fixed, groups, clamp_tags):
-    """InputError for a piece of a body that the prescribed displacements leave free to move as a
-    rigid body (its stiffness would be singular: every body needs supports of its own, contact
-    does not hold it): each connected piece of each body's cells must have prescribed components
-    that fix both translations and the rotation.  A body of several pieces whose nodes coincide
-    (surfaces meshed without being joined) is named as such."""
+    """InputError when the prescribed displacements leave part of the mesh free to move as a rigid
+    body (its stiffness would be singular: every part needs supports, contact does not hold it).
+    The mesh is cut into rigid pieces -- cells joined through shared edges, across 2-D groups (a
+    part of another material bonded to a body moves with it) --; pieces that share nodes are joined
+    there (one node: a hinge), and each prescribed component holds its node: the free motions are
+    the null space of those conditions on the pieces' rigid motions (three per piece).  A body
+    whose pieces share no node while some of their nodes coincide (surfaces meshed without being
+    joined) is named as such: in the error, or in a MeshWarning when everything is held."""
+    piece = _edge_pieces(fem.cells)
+    free = _free_motions(fem.points, fem.cells, piece, fixed)
+    body_name = lambda body: f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'})"  # noqa: E731
+    joined = {}  # body -> (its pieces, the note on coinciding nodes between them)
+    for body in np.unique(fem.cell_body):
+        mine = np.unique(piece[fem.cell_body == body])
+        if mine.size > 1:
+            joined[int(body)] = (mine.size, _coinciding(fem.points, fem.cells, piece, fem.cell_body == body))
+    if free is not None:
+        moving, what = free
+        cells = np.isin(piece, moving)
+        at = np.unique(fem.cells[cells])
+        bodies = np.unique(fem.cell_body[cells])
+        where = " bonded to ".join(body_name(b) for b in bodies)
+        split = [int(b) for b in bodies if int(b) in joined]
+        if split:
+            lo, hi = fem.points[at].min(axis=0), fem.points[at].max(axis=0)
+            count, note = joined[split[0]]
+            where = (f"the part of {where} within x in [{lo[0]:.6g}, {hi[0]:.6g}], y in [{lo[1]:.6g}, {hi[1]:.6g}] "
+                     f"({body_name(split[0])} has {count} pieces{note or ' joined at single nodes or not at all'})")
+        held_at = np.intersect1d(at, fem.cells[~cells])  # (nodes it shares with parts that do not move)
+        if not fixed[at].any() and not held_at.size:
+            tag_bodies = fem.tag_bodies()
+            on_it = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
+                     if set(bs) <= set(bodies.tolist()) and t not in (CONTACT1, CONTACT2)]
+            used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
+            raise InputError(
+                f"{where} has no Dirichlet condition: none of the clamped boundary pieces ({used}) lies on it, so "
+                f"its stiffness is singular (rigid-body motions). Clamp one of its boundary pieces"
+                + (f", e.g. one of: {', '.join(on_it)}" if on_it and not split else ""))
+        raise InputError(f"{where} {what}: its stiffness is singular; clamp one of its boundary pieces or prescribe "
+                         "more displacement components (dirichlet)")
+    for body, (count, note) in joined.items():
+        if note:
+            warnings.warn(f"{body_name(body)} is made of {count} pieces that share no edge{note}; each piece is held "
+                          "by its own supports", MeshWarning, stacklevel=3)
+
+
+def _edge_pieces(cells) -> np.ndarray:
+    """The rigid piece of each cell: cells joined through shared edges (connected components)."""
     from scipy.sparse.csgraph import connected_components
 
-    constrained = fixed.any(axis=1)
-    tag_bodies = fem.tag_bodies()
-    P = len(fem.points)
-    for body in np.unique(fem.cell_body):
-        cells = fem.cells[fem.cell_body == body]
-        k = cells.shape[1]
-        rows = np.repeat(cells[:, 0], k - 1)
-        graph = sp.coo_matrix((np.ones(rows.size), (rows, cells[:, 1:].ravel())), shape=(P, P))
-        _, label = connected_components(graph, directed=False)
-        nodes = np.unique(cells)
-        pieces = np.unique(label[nodes])
-        name = f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'})"
-        joined = _coinciding(fem.points, label, nodes) if pieces.size > 1 else ""
-        for piece in pieces:
-            at = nodes[label[nodes] == piece]
-            where = name
-            if pieces.size > 1:
-                lo, hi = fem.points[at].min(axis=0), fem.points[at].max(axis=0)
-                where = (f"the piece of {name} within x in [{lo[0]:.6g}, {hi[0]:.6g}], y in [{lo[1]:.6g}, {hi[1]:.6g}] "
-                         f"(the body has {pieces.size} pieces that share no node{joined})")
-            free = _free_motion(fem.points[at], fixed[at])
-            if free is None:
-                continue
-            if not constrained[at].any():
-                on_it = [_tag_label(groups, 1, t) for t, bs in sorted(tag_bodies.items())
-                         if bs == [int(body)] and t not in (CONTACT1, CONTACT2)]
-                used = ", ".join(_tag_label(groups, 1, t) for t in clamp_tags) or "none"
-                raise InputError(
-                    f"{where} has no Dirichlet condition: none of the clamped boundary pieces ({used}) lies on it, so "
-                    f"its stiffness is singular (rigid-body motions). Clamp one of its boundary pieces"
-                    + (f", e.g. one of: {', '.join(on_it)}" if on_it and pieces.size == 1 else ""))
-            raise InputError(f"{where} {free}: its stiffness is singular; clamp one of its boundary pieces or prescribe "
-                             "more displacement components (dirichlet)")
-        if joined:
-            warnings.warn(f"{name} is made of {pieces.size} pieces that share no node{joined}; each piece is held by its "
-                          "own supports", MeshWarning, stacklevel=3)
+    C, k = cells.shape
+    ends = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)
+    width = int(cells.max(initial=0)) + 1
+    _, edge = np.unique(ends.min(axis=1) * width + ends.max(axis=1), return_inverse=True)
+    edge = edge.ravel()
+    owner = np.repeat(np.arange(C), k)
+    incidence = sp.csr_matrix((np.ones(edge.size), (owner, edge)), shape=(C, int(edge.max()) + 1))
+    _, piece = connected_components(incidence @ incidence.T, directed=False)
+    return piece
 
 
-def _free_motion(points, fixed):
-    """None when the prescribed components ``fixed`` (k, 2) of the nodes at ``points`` (k, 2) hold
-    every rigid motion of them, else what they leave free ("can move freely in x", "can rotate
-    about (x, y)")."""
-    if not fixed[:, 0].any():
-        return "has no prescribed x component: it can move freely in x"
-    if not fixed[:, 1].any():
-        return "has no prescribed y component: it can move freely in y"
+def _free_motions(points, cells, piece, fixed):
+    """None when the rigid pieces (``piece``: each cell's), joined at their shared nodes and held by
+    the prescribed components ``fixed`` (P, 2), admit no rigid motion; else (the pieces that move,
+    what the motion is: "can move freely in x", "can rotate about (x, y)")."""
+    pieces, index = np.unique(piece, return_inverse=True)
+    pairs = np.unique(cells.ravel() * pieces.size + np.repeat(index.ravel(), cells.shape[1]))
+    node, owner = pairs // pieces.size, pairs % pieces.size  # every (node, piece it belongs to), by node
     centre = points.mean(axis=0)
     size = max(float(np.ptp(points, axis=0).max(initial=0.0)), 1e-300)
     r = (points - centre) / size
-    # rigid motion (a, b, c): u = (a - c r_y, b + c r_x); each prescribed component is one row
-    fx, fy = fixed[:, 0], fixed[:, 1]
-    A = np.vstack([np.column_stack([np.ones(fx.sum()), np.zeros(fx.sum()), -r[fx, 1]]),
-                   np.column_stack([np.zeros(fy.sum()), np.ones(fy.sum()), r[fy, 0]])])
-    sv = np.linalg.svd(A, compute_uv=False)
-    if sv[-1] > 1e-9 * sv[0]:
+    width = 3 * pieces.size
+
+    def motion_rows(nodes, owners, comp):  # u_comp at the nodes as their pieces move: u = (a - c r_y, b + c r_x)
+        out = np.zeros((nodes.size, width))
+        out[np.arange(nodes.size), 3 * owners + comp] = 1.0
+        out[np.arange(nodes.size), 3 * owners + 2] = -r[nodes, 1] if comp == 0 else r[nodes, 0]
+        return out
+
+    # a node in several pieces joins them: its motion is the same in each (pairs sorted by node)
+    first = np.r_[True, node[1:] != node[:-1]]
+    lead = np.maximum.accumulate(np.where(first, np.arange(node.size), 0))
+    again = ~first
+    blocks = [motion_rows(node[again], owner[lead[again]], comp) - motion_rows(node[again], owner[again], comp)
+              for comp in (0, 1)]
+    blocks += [motion_rows(node[fixed[node, comp]], owner[fixed[node, comp]], comp) for comp in (0, 1)]
+    A = np.vstack(blocks)
+    if A.shape[0] >= width:
+        _, sv, vt = np.linalg.svd(A, full_matrices=False)
+    else:
+        _, sv, vt = np.linalg.svd(A) if A.size else (None, np.zeros(0), np.eye(width))
+    if sv.size == width and sv[-1] > 1e-9 * sv[0]:
         return None
-    _, _, vt = np.linalg.svd(A)
-    a, b, c = vt[-1]
-    # the free motion is a rotation about the point where its velocity vanishes
-    pivot = centre + size * np.array([-b / c, a / c]) if abs(c) > 1e-12 else centre
+    motion = vt[-1].reshape(-1, 3)
+    amount = np.abs(motion).max(axis=1)
+    moves = amount > 1e-6 * amount.max()
+    moving = pieces[moves]
+    scale = max(float(sv[0]) if sv.size else 1.0, 1e-300)
+    for comp, axis in ((0, "x"), (1, "y")):  # (the plainest free motion first: those pieces sliding in x or y)
+        slide = np.zeros((pieces.size, 3))
+        slide[moves, comp] = 1.0
+        if np.linalg.norm(A @ slide.ravel()) <= 1e-9 * scale * np.linalg.norm(slide):
+            return moving, f"can move freely in {axis}"
+    a, b, c = motion[int(np.argmax(amount))]
+    if abs(c) <= 1e-9 * max(abs(a), abs(b)):
+        if abs(b) <= 1e-9 * abs(a) or abs(a) <= 1e-9 * abs(b):
+            return moving, f"can move freely in {'x' if abs(b) <= 1e-9 * abs(a) else 'y'}"
+        return moving, f"can move freely along ({a:.3g}, {b:.3g})"
+    pivot = centre + size * np.array([-b / c, a / c])
     pivot = np.where(np.abs(pivot) <= 1e-12 * (size + np.abs(centre).max()), 0.0, pivot)  # (rounding of a zero)
-    return f"can rotate about ({pivot[0]:.6g}, {pivot[1]:.6g}) (its prescribed components do not hold the rotation)"
+    return moving, f"can rotate about ({pivot[0]:.6g}, {pivot[1]:.6g}) (its supports do not hold the rotation)"
 
 
-def _coinciding(points, label, nodes) -> str:
+def _coinciding(points, cells, piece, mine) -> str:
     """"; nodes of different pieces coincide at (x, y), ...: surfaces meshed without being joined"
-    when they do (else "")."""
+    when nodes of the cells ``mine`` (a mask) in different pieces coincide (else "")."""
+    nodes = np.unique(cells[mine])
+    node_piece = np.empty(len(points), dtype=np.int64)
+    node_piece[cells[mine].ravel()] = np.repeat(piece[mine], cells.shape[1])
+    from scipy.spatial import cKDTree
+
     xy = points[nodes]
     scale = max(float(np.ptp(xy, axis=0).max(initial=0.0)), 1e-300)
-    order = np.lexsort((xy[:, 1], xy[:, 0]))
-    close = np.all(np.abs(np.diff(xy[order], axis=0)) <= 1e-12 * scale, axis=1)
-    pairs = [(order[i], order[i + 1]) for i in np.flatnonzero(close) if label[nodes[order[i]]] != label[nodes[order[i + 1]]]]
-    if not pairs:
+    close = cKDTree(xy).query_pairs(1e-10 * scale, output_type="ndarray")
+    pairs = close[node_piece[nodes[close[:, 0]]] != node_piece[nodes[close[:, 1]]]]
+    if not len(pairs):
         return ""
-    where = "; ".join(f"({xy[i, 0]:.6g}, {xy[i, 1]:.6g})" for i, _ in pairs[:3])
+    pairs = pairs[np.lexsort((xy[pairs[:, 0], 1], xy[pairs[:, 0], 0]))]
+    where = "; ".join(f"({xy[i, 0]:.6g}, {xy[i, 1]:.6g})" for i in pairs[:3, 0])
     return (f"; nodes of different pieces coincide at {len(pairs)} point(s), e.g. {where}: surfaces meshed without "
             "being joined -- make the geometry coherent if they are one body")
 

@@ -1095,9 +1095,10 @@ def validate_saved(meta, arrays, path):
                              f"(or -1: a rigid master)")
         if len(arrays["geometry_cell_body"]) != len(arrays["geometry_cells"]):
             raise InputError(f"{where}: arrays 'geometry_cell_body' and 'geometry_cells' differ in length")
-        bad = np.setdiff1d(arrays["geometry_cell_body"], (1, 2))
+        bad = arrays["geometry_cell_body"][arrays["geometry_cell_body"] < 1]
         if bad.size:
-            raise InputError(f"{where}: array 'geometry_cell_body' holds {int(bad[0])}; a cell's body is 1 or 2")
+            raise InputError(f"{where}: array 'geometry_cell_body' holds {int(bad[0])}; a cell's body is the number "
+                             "of its 2-D physical group (1, 2, or another part's, >= 1)")
         for name in ("geometry_material", "geometry_obstacle"):  # (JSON text)
             if name in arrays:
                 try:

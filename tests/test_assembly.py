@@ -480,6 +480,7 @@ def _rect(geo_, x0, y0, x1, y1, nx, ny, structured=True):
         geo_.mesh.setTransfiniteCurve(line, k + 1)
     if structured:
         geo_.mesh.setTransfiniteSurface(surface)
+    _rect.points = p  # (its corners, for parts joined to it)
     return surface, lines
 
 
@@ -512,9 +513,25 @@ def _user_blocks(model, variant):
     else:  # (an embedded curve needs an unstructured mesh: a transfinite one ignores it)
         s1, (c1, r1, top, l1) = _rect(geo_, 0.0, 0.0, 3.0, 1.0, 6, 2, structured=variant != "embedded")
         bodies1, contact1, tops, lefts = [s1], [c1], [top], [l1]
+        corner_right, corner_left = _rect.points[2], _rect.points[3]
+    if variant in ("bonded", "hinged"):  # part 3: a layer on body1's top (bonded along it) or a flap at one corner
+        if variant == "bonded":
+            q = [geo_.addPoint(x, 1.2, 0.0) for x in (3.0, 0.0)]
+            lines = [geo_.addLine(corner_right, q[0]), geo_.addLine(q[0], q[1]), geo_.addLine(q[1], corner_left)]
+            loop = [-top] + lines
+            tops = [lines[1]]
+        else:
+            q = [geo_.addPoint(x, y, 0.0) for x, y in ((3.5, 1.0), (3.5, 1.5), (3.0, 1.5))]
+            lines = [geo_.addLine(corner_right, q[0]), geo_.addLine(q[0], q[1]), geo_.addLine(q[1], q[2]),
+                     geo_.addLine(q[2], corner_right)]
+            loop = lines
+        part = geo_.addPlaneSurface([geo_.addCurveLoop(loop)])
+        geo_.mesh.setTransfiniteCurve(lines[1], 7 if variant == "bonded" else 2)
     groups = {(2, 1): ("body1", bodies1), (2, 2): ("body2", [s2]), (1, 10): ("contact1", contact1),
               (1, 20): ("contact2", [t2]), (1, 12): ("top1", tops), (1, 14): ("left1", lefts),
               (1, 22): ("bottom2", [b2])}
+    if variant in ("bonded", "hinged"):
+        groups[(2, 3)] = ("part3", [part])
     if variant in ("embedded", "drawn"):  # a line inside body1: embedded in its mesh, or only drawn over it
         a, b = geo_.addPoint(0.5, 0.5, 0.0), geo_.addPoint(2.5, 0.5, 0.0)
         inner = geo_.addLine(a, b)
@@ -561,12 +578,25 @@ def test_a_body_of_two_unjoined_pieces():
     free the error names that piece, not the body, and the coinciding nodes."""
     from cfcontact.errors import MeshWarning
 
-    with pytest.warns(MeshWarning, match=r"body 1 \(body1\) is made of 2 pieces .* coincide at 2 point\(s\)"):
+    with pytest.warns(MeshWarning, match=r"body 1 \(body1\) is made of 2 pieces that share no edge; nodes of "
+                                         r"different pieces coincide at 7 point\(s\), e.g. \(0, 0.5\)"):
         system = _assemble_user("split")
     assert system.m == 7
-    with pytest.raises(InputError, match=r"the piece of body 1 \(body1\) within x in \[0, 3\], y in \[0, 0.5\] .*"
+    with pytest.raises(InputError, match=r"the part of body 1 \(body1\) within x in \[0, 3\], y in \[0, 0.5\] .*"
                                          r"coincide .* has no Dirichlet condition"):
         _assemble_user("split-float")
+
+
+def test_a_bonded_part_moves_with_its_body_and_a_hinged_one_is_free():
+    """A 2-D group of another material meshed onto body1's top (sharing its edge and nodes) is held
+    by body1's supports: built, K positive definite (it had been refused for want of a clamp of
+    its own); one that touches body1 at a single node turns about it: refused naming the pivot."""
+    system = _assemble_user("bonded", E={"body1": 2e11, "body2": 2e11, "part3": 7e10})
+    K = system.to_scipy()[0].toarray()
+    assert np.linalg.eigvalsh(K).min() > 1e-9 * np.abs(K).max()
+    assert sorted(np.unique(system.geometry.cell_body).tolist()) == [1, 2, 3]
+    with pytest.raises(InputError, match=r"body 3 \(part3\) can rotate about \(3, 1\)"):
+        _assemble_user("hinged", tractions1={})
 
 
 def test_supports_that_leave_a_rigid_motion_free_are_named():
@@ -575,7 +605,7 @@ def test_supports_that_leave_a_rigid_motion_free_are_named():
     with pytest.raises(InputError, match=r"body 1 \(body1\) can rotate about \(0, 0.5\)"):
         two_blocks(nx=3, ny=1, length=2.0, height=0.5, clamp=("left2",), dirichlet={"top1": {"x": 0.0},
                                                                                         "left1": {"y": 0.0}})
-    with pytest.raises(InputError, match=r"body 1 \(body1\) has no prescribed y component"):
+    with pytest.raises(InputError, match=r"body 1 \(body1\) can move freely in y"):
         two_blocks(nx=3, ny=1, clamp=("left2",), dirichlet={"left1": {"x": 0.0}})
     assert two_blocks(nx=3, ny=1, clamp=("left2",), dirichlet={"left1": {"x": 0.0}, "top1": {"y": 0.0}}).m == 4
 
