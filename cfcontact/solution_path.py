@@ -536,9 +536,13 @@ class SolutionPath:
         n, d = self.n, abs(alpha - a_r) + abs(a_r) + 1.0
         size_u = np.abs(Yr[:n]).max(initial=0) + d * np.abs(dY[:n]).max(initial=0)
         size_l = np.abs(Yr[n:]).max(initial=0) + d * np.abs(dY[n:]).max(initial=0)
-        rows = max(np.asarray(abs(A).sum(axis=1)).max(initial=0) for A in (self.N, self.T))
-        F = np.asarray(self.friction, dtype=float).max(initial=0)
-        gap = np.abs(np.asarray(self.gap, dtype=float)).max(initial=0)
+        data = getattr(self, "_rounding_data", None)
+        if data is None:  # (the path's N, T, friction and gap: computed once)
+            data = self._rounding_data = (
+                max(np.asarray(abs(A).sum(axis=1)).max(initial=0) for A in (self.N, self.T)),
+                np.asarray(self.friction, dtype=float).max(initial=0),
+                np.abs(np.asarray(self.gap, dtype=float)).max(initial=0))
+        rows, F, gap = data
         return 16 * np.finfo(float).eps * ((1.0 + F) * size_l + self.rho * (rows * size_u + gap))
 
     def _consistent(self, y, sets, slack=1e-9, ind=None, floor=0.0):
