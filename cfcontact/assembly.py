@@ -177,6 +177,13 @@ def _physical_groups(model):
     return groups, None
 
 
+def _edge_keys(cells, width) -> np.ndarray:
+    """One integer per edge of each cell, row by row (cells: (C, k) corner nodes in cyclic order,
+    numbers below ``width``): min * width + max of the edge's two nodes, the same from either cell."""
+    ends = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)
+    return ends.min(axis=1) * width + ends.max(axis=1)
+
+
 def _loose_lines(model, groups):
     """A text naming a 1-D physical group with line elements that are no edge of any 2-D cell (a
     curve drawn over a surface without being embedded in its mesh; dolfinx would abort on it),
@@ -187,17 +194,17 @@ def _loose_lines(model, groups):
             _, _, _, k, _, corners = model.mesh.getElementProperties(int(etype))
             yield np.asarray(tags, dtype=np.int64).reshape(-1, k)[:, :corners]
 
-    edges = [np.sort(np.stack([c, np.roll(c, -1, axis=1)], axis=2).reshape(-1, 2), axis=1) for c in corner_pairs(2)]
+    width = 1 << 31  # (gmsh node tags < 2^31)
+    edges = [_edge_keys(c, width) for c in corner_pairs(2)]
     if not edges:
         return None
-    key = lambda pairs: pairs[:, 0] * (1 << 31) + pairs[:, 1]  # noqa: E731  (gmsh node tags < 2^31)
-    known = np.unique(key(np.concatenate(edges)))
+    known = np.unique(np.concatenate(edges))
     for (dim, num), name in sorted(groups.items()):
         if dim != 1:
             continue
         for entity in model.getEntitiesForPhysicalGroup(dim, num):
             for lines in corner_pairs(1, entity):
-                loose = ~np.isin(key(np.sort(lines[:, :2], axis=1)), known)
+                loose = ~np.isin(_edge_keys(lines[:, :2], width)[::2], known)
                 if loose.any():
                     label = f"{name}={num}" if name else str(num)
                     return (f"{int(loose.sum())} line element(s) of the 1-D group {label} are no edge of any 2-D cell: "
@@ -362,11 +369,12 @@ class _FemModel:
         self.node_body = np.zeros(len(self.points), dtype=np.int64)
         self.node_body[self.cells.ravel()] = np.repeat(self.cell_body, self.cells.shape[1])
         self._check_cells(np.abs(area))
+        # the edges of the cells (cell_edge: each cell's, row by row, as indices into the edges);
         # facets with a cell on both sides (a line inside a body) are not on the boundary
-        ends = np.stack([self.cells, np.roll(self.cells, -1, axis=1)], axis=2).reshape(-1, 2)
         P = len(self.points)
-        edges, count = np.unique(ends.min(axis=1) * P + ends.max(axis=1), return_counts=True)
-        key = self.facet_nodes.min(axis=1) * P + self.facet_nodes.max(axis=1) if self.facet_nodes.size else np.empty(0)
+        edges, cell_edge, count = np.unique(_edge_keys(self.cells, P), return_inverse=True, return_counts=True)
+        self.cell_edge = cell_edge.ravel()
+        key = _edge_keys(self.facet_nodes, P)[::2] if self.facet_nodes.size else np.empty(0)
         at = np.searchsorted(edges, key)
         self.facet_interior = (at < edges.size) & (edges[np.minimum(at, edges.size - 1)] == key) & \
             (count[np.minimum(at, edges.size - 1)] > 1)
@@ -916,7 +924,7 @@ def _check_supports(fem, fixed, groups, clamp_tags):
     the null space of those conditions on the pieces' rigid motions (three per piece).  A body
     whose pieces share no node while some of their nodes coincide (surfaces meshed without being
     joined) is named as such: in the error, or in a MeshWarning when everything is held."""
-    piece = _edge_pieces(fem.cells)
+    piece = _edge_pieces(fem.cell_edge, fem.cells.shape[1])
     free = _free_motions(fem.points, fem.cells, piece, fixed)
     body_name = lambda body: f"body {int(body)} ({groups.get((2, int(body)), '') or 'unnamed'})"  # noqa: E731
     joined = {}  # body -> (its pieces, the note on coinciding nodes between them)
@@ -954,17 +962,14 @@ def _check_supports(fem, fixed, groups, clamp_tags):
                           "by its own supports", MeshWarning, stacklevel=3)
 
 
-def _edge_pieces(cells) -> np.ndarray:
-    """The rigid piece of each cell: cells joined through shared edges (connected components)."""
+def _edge_pieces(cell_edge, k) -> np.ndarray:
+    """The rigid piece of each cell: cells joined through shared edges (connected components);
+    ``cell_edge``: the edge index of each of the k edges of each cell, row by row."""
     from scipy.sparse.csgraph import connected_components
 
-    C, k = cells.shape
-    ends = np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)
-    width = int(cells.max(initial=0)) + 1
-    _, edge = np.unique(ends.min(axis=1) * width + ends.max(axis=1), return_inverse=True)
-    edge = edge.ravel()
+    C = cell_edge.size // k
     owner = np.repeat(np.arange(C), k)
-    incidence = sp.csr_matrix((np.ones(edge.size), (owner, edge)), shape=(C, int(edge.max()) + 1))
+    incidence = sp.csr_matrix((np.ones(cell_edge.size), (owner, cell_edge)), shape=(C, int(cell_edge.max()) + 1))
     _, piece = connected_components(incidence @ incidence.T, directed=False)
     return piece
 
