@@ -459,9 +459,11 @@ def parse_component(value, where):
         name, sep, idx = value.partition(":")
         if not sep:
             try:
-                return parse_component(int(value), where)
+                number = int(value)
             except ValueError:
                 pass
+            else:  # (outside the try: the CaseError of a negative index is a ValueError too)
+                return parse_component(number, where)
         try:
             value = [name.strip(), int(idx)]
         except ValueError:
