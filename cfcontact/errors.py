@@ -87,7 +87,7 @@ class EnumerationTooLarge(InputError):
 
 class PairingWarning(UserWarning):
     """Contact pairing left some slave nodes out (their normal misses the master, meets only its
-    back, or meets it farther than the search distance).  Not an error: the model is built."""
+    back, or meets no front of it within the search distance).  Not an error: the model is built."""
 
 
 class IgnoredOptionWarning(UserWarning):

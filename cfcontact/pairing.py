@@ -64,7 +64,9 @@ class Pairing:
         (a nodal force over it is a pressure)
     slave_body : 1 or 2 -- the body of the slave nodes (their rows carry +n for body 1, -n for body 2)
     excluded : (k,) int -- slave nodes left out;  excluded_reason : (k,) str ("miss", "back" or
-        "distance": the ray misses the master, meets only its back, or meets it too far)
+        "distance": the ray misses the master, meets only its back, or meets no front of it within
+        the search distance -- with a search distance, a ray that misses the master altogether is
+        "distance" too: the search looks no farther)
     projections : (m, 2) float -- the master points the slave nodes are paired with
     """
 
@@ -121,7 +123,7 @@ class Pairing:
             return ""
         pts = np.asarray(points)[self.excluded]
         why = {"miss": f"their normal misses {master}", "back": f"their normal meets only the back of {master}",
-               "distance": f"{master} is farther than the search distance"}
+               "distance": f"{master} is not within the search distance along their normal"}
         counts = ", ".join(f"{int(np.sum(self.excluded_reason == r))} because {text}" for r, text in why.items()
                            if np.any(self.excluded_reason == r))
         shown = "; ".join(f"({x:.6g}, {y:.6g})" for x, y in pts[:6]) + ("; ..." if k > 6 else "")

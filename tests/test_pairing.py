@@ -147,7 +147,7 @@ def test_circle_obstacle_gap_excluded_nodes_and_warning():
     assert "8 contact1=10 node(s) left out" in msg and "misses the obstacle" in msg and "x in [0, 2]" in msg
     assert info["gap_range"] == [pytest.approx(d), pytest.approx(np.hypot(0.6, R + d) - R)]
     # a search distance keeps only the nodes within it
-    with pytest.warns(PairingWarning, match="farther than the search distance"):
+    with pytest.warns(PairingWarning, match="not within the search distance along their normal"):
         near = _block_on({"kind": "circle", "center": (x0, -R - d), "radius": R}, nx=20, search_distance=0.05)
     assert near.m < system.m and near.gap.max() <= 0.05
 
