@@ -659,3 +659,17 @@ def test_a_cell_of_zero_area_is_named():
         with pytest.raises(GeometryError, match=r"1 cell\(s\) of \(nearly\) zero area.*corners \(0, 1\); \(0.5, 1\); "
                                                 r"\(1, 1\)"):
             assemble_contact_system(model, clamp=(), dirichlet=None)
+
+
+def test_a_boolean_tag_and_a_piece_given_two_values_are_refused():
+    """A boolean where a tag goes, and a dirichlet that gives one piece two values for one
+    component (by name and by number): each refused naming the tag and what would do; the same
+    value given twice is one condition."""
+    with pytest.raises(GeometryError, match=r"unknown boundary piece \(1-D physical group\) True in clamp; valid 1-D "
+                                            r"physical groups: .*left1=14"):
+        _renamed({}, clamp=(True,))
+    with pytest.raises(InputError, match=r"dirichlet gives top1=12 two values for y"):
+        _renamed({}, clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": -0.01}, 12: {"y": -0.02}})
+    same = _renamed({}, clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": -0.01}, 12: {"y": -0.01}})
+    once = _renamed({}, clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": -0.01}})
+    assert same.n == once.n and np.array_equal(same.loads_numpy()[1], once.loads_numpy()[1])
