@@ -18,7 +18,8 @@ whole run; a second run into the same folder (``--force`` included) is refused w
 (the kernel drops the lock of a dead process, so a killed run's lock is taken over).  At
 the start of a run the leftovers of killed runs are removed: a ``<out>.partial/`` without a
 checkpoint, the temporary folders of an interrupted save (``.checkpoint-new``, ``.cfpath-*``),
-partial outputs beside a checkpoint, ``<out>.old``.
+partial outputs beside a checkpoint, ``<out>.old`` (put back as ``<out>`` when a replacement
+was stopped between its two renames).
 
 Library code: nothing here prints; progress goes to a display object (``update(text, force)``,
 ``clear()``, ``done()``) and warnings to a callable, both given by the caller (the command line).
@@ -667,8 +668,13 @@ class CaseRun:
         return bool(self.resume and self.resume.get("traced"))
 
     def _check_folders(self, force, resume, warn):
-        if os.path.isdir(self.out + ".old") and os.path.isdir(self.out):  # a replacement killed halfway
-            shutil.rmtree(self.out + ".old", ignore_errors=True)
+        old = self.out + ".old"
+        if os.path.isdir(old):  # a replacement (--force) killed halfway
+            if os.path.isdir(self.out):  # after its new folder was in place
+                shutil.rmtree(old, ignore_errors=True)
+            else:  # between its two renames: the earlier results go back in place
+                os.rename(old, self.out)
+                warn(f"restored {self.out!r} from {old!r}, left by a replacement stopped halfway")
         damaged = damaged_checkpoint(self.partial)
         if damaged is not None and (resume or not force):  # kept: the user decides (--force starts over)
             raise CaseError(f"the checkpoint in {self.partial!r} is damaged: {damaged}; start over with --force")

@@ -183,6 +183,13 @@ def test_run_refuses_existing_output_then_force(small_run, capsys):
     assert cli.main(["run", case, "-q", "--force"]) == 0
     assert os.path.getmtime(os.path.join(out, "summary.json")) >= before
     assert not os.path.exists(out + ".partial") and not os.path.exists(out + ".old")
+    # a replacement stopped between its two renames (<out> moved to <out>.old, the new one not yet
+    # in place): the next run puts the earlier results back and refuses to overwrite them
+    os.rename(out, out + ".old")
+    assert cli.main(["run", case]) == 2
+    err = capsys.readouterr().err
+    assert "restored" in err and "--force" in err
+    assert os.path.isfile(os.path.join(out, "summary.json")) and not os.path.exists(out + ".old")
 
 
 @pytest.mark.slow
