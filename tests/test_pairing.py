@@ -392,3 +392,25 @@ def test_a_rotated_non_matching_interface_has_no_rounding_gaps():
     for angle in (0.0, 30.0):
         system = cfcontact.two_blocks(nx=12, ny=2, nx2=17, ny2=2, angle=angle, cell="triangle", pairing="segment")
         assert system.m == 12 and not system.has_gap and not system.gap.any(), angle
+
+
+def test_a_roller_node_on_a_rigid_disc_keeps_its_free_direction():
+    """A block on a rigid disc whose centre is not under the block's left edge, that edge on a
+    roller (u_x = 0): the corner node can only move vertically, so its row is along y and its gap
+    the vertical distance to the circle, R + d - sqrt(R^2 - xc^2), not the distance to the nearest
+    point (tilted); it has no tangential unknown.  Every other node: the distance to the circle
+    along the circle's radius."""
+    R, d, xc = 5.0, 0.01, 1.3
+    system = cfcontact.two_blocks(nx=10, ny=2, length=2.0, height=0.5, foundation=True, clamp=(),
+                                  obstacle={"kind": "circle", "center": (xc, -R - d), "radius": R},
+                                  dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.02)}, "left1": {"x": 0.0}},
+                                  tractions1={}, tractions2={})
+    x = system.geometry.contact_points[:, :2]
+    corner = np.flatnonzero(np.isclose(x[:, 0], 0.0, atol=1e-12))
+    assert corner.size == 1 and system.no_tangent[corner].all() and system.no_tangent.sum() == 1
+    assert np.allclose(system.geometry.normals[corner, :2], [[0.0, -1.0]], atol=1e-14)
+    assert system.gap[corner][0] == pytest.approx(R + d - np.sqrt(R ** 2 - xc ** 2), rel=1e-12)
+    rest = np.setdiff1d(np.arange(system.m), corner)
+    radial = x[rest] - (xc, -R - d)
+    assert np.allclose(system.gap[rest], np.hypot(*radial.T) - R, rtol=1e-12)
+    assert np.allclose(system.geometry.normals[rest, :2], -radial / np.hypot(*radial.T)[:, None], atol=1e-12)
