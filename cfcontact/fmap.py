@@ -224,9 +224,11 @@ def multiplicity_map(system, alphas, frictions, alpha_start: float = 0.0, alpha_
     solver, opts, phi = _paths_setup(system, solver, options)
     alphas = np.asarray(alphas, dtype=float).ravel()
     frictions = np.asarray(frictions, dtype=float).ravel()
-    if not alphas.size or not frictions.size or not np.all(np.isfinite(alphas)) or not np.all(np.isfinite(frictions)) \
-            or frictions.min() < 0:
-        raise InputError("alphas and frictions must be non-empty arrays of finite numbers (frictions >= 0)")
+    for name, x in (("alphas", alphas), ("frictions", frictions)):
+        bad = x[~np.isfinite(x) | ((x < 0) if name == "frictions" else False)]
+        if not x.size or bad.size:
+            raise InputError(f"alphas and frictions must be non-empty arrays of finite numbers (frictions >= 0): "
+                             f"{name} {'is empty' if not x.size else f'has {bad[0]!r}'}")
     counts = np.zeros((frictions.size, alphas.size), dtype=np.int16)
     res = FrictionMap(alphas, frictions, counts, float(alpha_start), float(alpha_end))
     t_trace = t_count = 0.0
@@ -308,6 +310,7 @@ class _Sweep:
         self.notes: list = []
         self.times = {"trace": 0.0, "events": 0.0}
         self.n_pencils = 0
+        self.stopped_at = None  # the F where the sweep stopped before the end of its range (see notes)
 
     def w(self, a):
         return self.w1 + a * self.dw
@@ -484,6 +487,7 @@ class _Sweep:
                 got = self.probe(F, a, F_hi)
                 if got is None:
                     self.notes.append(f"no usable probe in [{a!r}, {F_hi!r}] (degenerate paths); the sweep stops")
+                    self.stopped_at = a
                     break
             else:  # probe the gap [a, F_a) below the chain found above it
                 gap = pending[1] - a
@@ -504,6 +508,7 @@ class _Sweep:
             a, at_event = hi_e, True
         else:
             self.notes.append(f"probe cap {MAX_PROBES} reached")
+            self.stopped_at = a
         return out
 
 
@@ -516,7 +521,9 @@ class PathCriticalFriction:
     already there, ``below_range`` then True); ``alpha``, ``node``, ``set``: the fold(s) there (the
     first); ``folds``: every fold of the chain at that F as (alpha, node, set); ``bracket``: the
     probes (F, folds) just below and above, between which the chain changes only at ``friction``;
-    ``tests``: every probe of the sweep (F, folds, [F_a, F_b] of its chain)."""
+    ``tests``: every probe of the sweep (F, folds, [F_a, F_b] of its chain); ``stopped_at``: the F
+    at which the sweep stopped before the end of the range (None: it covered the range), see
+    ``notes``: with ``friction`` inf, no fold was found below it and above it nothing is known."""
 
     friction: float
     alpha: float = float("nan")
@@ -526,6 +533,7 @@ class PathCriticalFriction:
     bracket: tuple = ()
     below_range: bool = False
     uncertainty: float = 0.0
+    stopped_at: Optional[float] = None
     tests: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     time: float = 0.0
@@ -533,18 +541,23 @@ class PathCriticalFriction:
     def to_dict(self) -> dict:
         return jsonable({"friction": self.friction, "alpha": self.alpha, "node": self.node, "set": self.set,
                          "folds": self.folds, "bracket": list(self.bracket), "below_range": self.below_range,
-                         "uncertainty": self.uncertainty,
+                         "uncertainty": self.uncertainty, "stopped_at": self.stopped_at,
                          "tests": self.tests, "notes": self.notes, "time": self.time})
 
     def __str__(self):
         if not np.isfinite(self.friction):
+            if self.stopped_at is not None:
+                why = next((n for n in self.notes if "the sweep stops" in n or "probe cap" in n), "see notes")
+                return (f"no fold found for F up to {self.stopped_at:.12g}, where the sweep stopped before the end "
+                        f"of the friction range ({why}): above it unknown")
             return "no fold in the friction range"
         return (f"F = {self.friction:.12g}{' (already at the range start)' if self.below_range else ''}: fold at "
                 f"alpha = {self.alpha:.10g}, node {self.node} ({self.set})")
 
 
 def _critical_from(intervals, F_lo, sweep) -> PathCriticalFriction:
-    res = PathCriticalFriction(math.inf, tests=[list(p) for p in sweep.probes], notes=list(sweep.notes))
+    res = PathCriticalFriction(math.inf, tests=[list(p) for p in sweep.probes], notes=list(sweep.notes),
+                               stopped_at=sweep.stopped_at)
     for k, (a, b, ch) in enumerate(intervals):
         if ch is None or not ch.folds:
             continue

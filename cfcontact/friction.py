@@ -417,6 +417,7 @@ class FrictionStepper(_FStepper):
     accepted point; ``resume`` and ``monitor`` as for :class:`cfcontact.exact.ExactStepper`."""
 
     method = "exact"
+    _start_stuck = False  # the start point is degenerate and the rule could not leave it: the run ends there
 
     def __init__(self, system, alpha, span: AlphaSpan, options: PathOptions, solver, pattern=None, resume=None,
                  monitor=None):
@@ -473,8 +474,12 @@ class FrictionStepper(_FStepper):
         try:
             nxt, d, pivots, _ = _resolve(ctx, ln, s, F, dec, start=True)
         except _Unresolved as exc:
+            # the start branch's vanishing constraints decrease in the direction of travel: it is no
+            # solution beyond the start point (its entry roots would be skipped), so the run ends there
             self.path.events.append(PathEvent("start_degenerate", F, f"the start point is a degenerate point the "
-                                              f"lexicographic rule could not leave ({exc})", None, jsonable(exc.data)))
+                                              f"lexicographic rule could not leave ({exc}); the path stops there",
+                                              None, jsonable(exc.data)))
+            self._start_stuck = True
             return codes, s
         ctx.stats["start_pivots"] = len(pivots)
         return nxt.codes.copy(), d
@@ -554,6 +559,10 @@ class FrictionStepper(_FStepper):
 
     def _step(self) -> Optional[int]:
         ctx, path, s = self.ctx, self.path, self.s
+        if self._start_stuck:
+            self.branch.alpha_exit = self.F
+            self._finish("stuck")
+            return None
         found = self._exit()
         if found is None:
             F_end = ctx.hi if s > 0 else ctx.lo

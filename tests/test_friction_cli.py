@@ -97,7 +97,9 @@ def test_map_command(tmp_path, capsys):
     assert "--force" in capsys.readouterr().err
     assert cli.main(args + ["--force", "--no-curves", "-q"]) == 0
     assert "fold_curves" not in json.loads((out / "map.json").read_text())
-    assert cli.main(["map", case, "--friction-range", "3", "1"]) == cli.EXIT_INPUT
+    capsys.readouterr()
+    assert cli.main(["map", case, "--friction-range", "3", "1", "--output", str(tmp_path / "other")]) == cli.EXIT_INPUT
+    assert "friction" in capsys.readouterr().err and not (tmp_path / "other").exists()
 
 
 @pytest.mark.slow
