@@ -45,7 +45,7 @@ from petsc4py import PETSc
 
 from cfcontact import linalg, native
 from cfcontact.compat_petsc import factor_schur_complement, factor_set_schur_is
-from cfcontact.errors import InputError, SingularSystemError
+from cfcontact.errors import CfcontactError, InputError, SingularSystemError
 from cfcontact.ssnm import (InactiveSets, SolverOptions, SolverStats, _default_solver_type, canonical_codes,
                             canonical_key)
 from cfcontact.system import ContactSystem
@@ -503,7 +503,8 @@ class CondensedSolver:
                     raise InputError("schur=True: PETSc's MUMPS interface has no parallel Schur complement")
                 self._request_schur(fm, required=bool(schur))
         elif schur:
-            raise InputError(f"schur=True needs MUMPS as the direct solver of K, not {pc.getFactorSolverType()!r}")
+            raise InputError(f"schur=True needs MUMPS as the direct solver of K, not "
+                             f"{pc.getFactorSolverType() or self.solver_type!r}")
         try:
             ksp.setUp()
         except PETSc.Error as exc:
@@ -580,6 +581,7 @@ class CondensedSolver:
         if self._envelope is not None:
             self.stats.linear_solves += 1
             return self._envelope.solve(rhs_local)
+        self._check_alive()
         self._b.getArray()[:] = rhs_local
         try:
             self.ksp.solve(self._b, self._x)
@@ -610,10 +612,15 @@ class CondensedSolver:
         correction after those steps; or as SolverOptions.refine says.  Two solves with K when no
         refinement is needed, one more per step."""
         opt = self.options.refine
-        if opt is False or self.m == 0:
+        if self.m == 0:
             return 0, None, None
         b = self.B_local.T @ np.random.default_rng(12345).standard_normal(2 * self.m)
+        if opt is False:
+            if self._envelope is None:  # (the envelope factor refuses a singular K itself)
+                self._check_regular(b, self._ksolve(b))
+            return 0, None, None
         x = self._ksolve(b)
+        self._check_regular(b, x)
         scale = max(np.abs(self._allreduce(self.B_local @ x)).max(), 1e-300)
         corrections = []
         threshold = REFINE_RTOL if self.n <= NATIVE_MAX_DOFS else REFINE_RTOL_LARGE
@@ -627,14 +634,25 @@ class CondensedSolver:
                 break  # after len(corrections) steps the error is c
             corrections.append(c)
             if len(corrections) > REFINE_MAX_STEPS:
-                log.warning("iterative refinement of solves with K does not contract (corrections %s of B x): K is "
-                            "too ill-conditioned for double precision",
-                            ", ".join(f"{c:.1e}" for c in corrections))
+                log.warning("iterative refinement of solves with K does not reach %.0e in %d steps (corrections %s of "
+                            "B x): K is too ill-conditioned for double precision; its refined solves stay off by "
+                            "about %.1e", REFINE_TARGET, REFINE_MAX_STEPS, ", ".join(f"{c:.1e}" for c in corrections), c)
                 break
         steps = min(len(corrections), REFINE_MAX_STEPS)
         log.info("solves with K are off by %.1e (relative, in B x): refined with %d step(s) of double-double "
                  "residuals to %.1e", corrections[0], steps, c)
         return steps, corrections[0], c
+
+    def _check_regular(self, b: np.ndarray, x: np.ndarray):
+        """SingularSystemError when x = K^-1 b (local rows) shows K singular or nearly so: |K| |x|
+        beyond 1e14 |b|, the bound :meth:`_condense_forward` applies.  (MUMPS' LU of a K with a
+        rigid-body mode does not fail: its solves come back some 1e15 times too large.)"""
+        nb, nx, bad = self._allreduce(np.array([np.abs(b).max(initial=0.0), np.abs(x).max(initial=0.0),
+                                                float(not np.isfinite(x).all())]), "MAX")
+        knorm = self.system.K.norm(PETSc.NormType.INFINITY)
+        if bad or not knorm * nx <= 1e14 * nb:
+            raise SingularSystemError(f"K is singular or nearly so (condition number at least "
+                                      f"{knorm * nx / max(nb, 1e-300):.1e}; every body needs a Dirichlet condition)")
 
     def _kresidual(self, b: np.ndarray, x_local: np.ndarray, lam: Optional[np.ndarray] = None,
                    coef: Optional[np.ndarray] = None) -> np.ndarray:
@@ -789,6 +807,7 @@ class CondensedSolver:
         if self._envelope is not None:
             self.stats.linear_solves += k
             return self._envelope.solve(rhs)
+        self._check_alive()
         try:
             Bm = PETSc.Mat().createDense(((self.nloc, self.n), (PETSc.DECIDE, k)), comm=self.comm)
             Bm.setUp()
@@ -1777,11 +1796,17 @@ class CondensedSolver:
         local = self.K_local @ u
         return linalg.concat_ranks(self.comm, local)
 
+    def _check_alive(self):
+        """CfcontactError when K's factorization is gone (:meth:`destroy`): no solve with K after it."""
+        if self.ksp is None:
+            raise CfcontactError("this CondensedSolver was destroyed (destroy()): it solves nothing more; make a new one")
+
     def destroy(self):
         self._envelope = None
         for obj in (self.ksp, self._x, self._b, self._schur_is):
             if obj is not None:
                 obj.destroy()
+        self.ksp = None
         self._lu.clear()
         self._loads.clear()
 
