@@ -1716,10 +1716,10 @@ class ExactStepper(Stepper):
             self._start_clock()
             self.ctx = _Context(system, self.solver, options, span.lo, span.hi, float(options.tie_rtol))
             self.path = SolutionPath.for_system(system, "exact", span.start, span.end, options.to_dict())
-            s = span.direction if orientation is None else int(orientation)
-            if s not in (1, -1):
+            s = span.direction if orientation is None else orientation
+            if isinstance(s, (bool, np.bool_)) or s not in (1, -1):
                 raise InputError(f"orientation must be +1 or -1, got {orientation!r}")
-            ln, s, self.start = _start(self.ctx, self.path, span.start, s, y0, start_sets, monitor)
+            ln, s, self.start = _start(self.ctx, self.path, span.start, int(s), y0, start_sets, monitor)
             self.walk = _Walk.begin(self.ctx, self.path, ln, s, span.start)
             self._pending_point = 0  # the start point is the first accepted point
         else:
@@ -2279,6 +2279,9 @@ def follow_alternative(system: ContactSystem, path: SolutionPath, event_index: i
     backend is the one ``trace_path(..., method="exact")`` picks
     (:func:`cfcontact.backend.select_solver`).
     """
+    for name, value in (("event_index", event_index), ("alternative", alternative)):
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+            raise InputError(f"{name} must be an integer, got {value!r}")
     if not (0 <= event_index < len(path.events)) or path.events[event_index].kind != "branch_point":
         raise InputError(f"event {event_index} is not a branch_point event of this path")
     ev = path.events[event_index]

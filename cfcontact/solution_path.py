@@ -711,8 +711,8 @@ class SolutionPath:
         for a, b, k in scan:
             if k > best[0]:
                 best = (k, 0.5 * (a + b))
-        if samples:
-            ends = sorted({float(e) for e in extents.ravel() if np.isfinite(e)})
+        ends = sorted({float(e) for e in extents.ravel() if np.isfinite(e)}) if samples else []
+        if ends:  # (a path without branches has nothing to sample: (0, nan))
             for a in np.linspace(min(ends), max(ends), samples):
                 k = len(self._solution_branches(float(a), extents=extents))
                 if k > best[0]:
