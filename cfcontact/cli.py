@@ -397,6 +397,10 @@ def cmd_plot(args):
     zoom = list(args.zoom) if args.zoom else None
     if zoom and not zoom[0] < zoom[1]:
         raise CaseError(f"--zoom: need A < B, got {zoom[0]} {zoom[1]}")
+    if zoom and len(path.alphas) and (zoom[1] < path.alphas.min() or zoom[0] > path.alphas.max()):
+        # (the library's message asks for value limits, which --zoom cannot take)
+        raise CaseError(f"--zoom {zoom[0]:g} {zoom[1]:g}: the path has no points there; it covers "
+                        f"{path.parameter_name} in [{path.alphas.min():.10g}, {path.alphas.max():.10g}]")
     out = args.output or ("multiplicity.png" if args.multiplicity else "path.png")
     if os.path.splitext(out)[1].lower() not in (".png", ".pdf"):
         raise CaseError(f"-o: unsupported figure format {out!r}; use .png or .pdf")
@@ -732,9 +736,13 @@ def cmd_map(args):
     bad = [m for m in (args.mark or []) if not (math.isfinite(m) and m >= 0)]
     if bad:
         raise CaseError(f"--mark: friction coefficients are finite numbers >= 0, got {bad[0]}")
-    if args.friction_range and not all(math.isfinite(F) and 0 <= F <= MAX_FRICTION for F in args.friction_range):
+    if args.friction_range and not (all(math.isfinite(F) and 0 <= F <= MAX_FRICTION for F in args.friction_range)
+                                    and args.friction_range[0] < args.friction_range[1]):
         raise CaseError(f"--friction-range: need 0 <= F0 < F1 <= {MAX_FRICTION:g}, got {args.friction_range[0]} "
                         f"{args.friction_range[1]}")
+    for flag, n in (("--frictions", args.frictions), ("--alphas", args.alphas)):  # (before any folder is made)
+        if not 2 <= n <= 100000:
+            raise CaseError(f"{flag}: need 2..100000 grid points, got {n}")
     case = load_case(args.case)
     if args.output:
         output_folder(os.path.dirname(os.path.abspath(args.output)), repr(args.output), "-o")
