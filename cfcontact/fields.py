@@ -12,7 +12,11 @@ NumPy only (no dolfinx, no h5py): everything works from a saved path on any mach
   a temporal collection with one grid per solution, Time = 0, 1, 2, ...  Node attributes
   ``displacement`` (3 components, z = 0), ``contact_state`` (-1 no contact node, 0 open,
   1 stick, 2 slip+, 3 slip-, 4 slip+- (invalid, shown if it occurs); on both nodes of a pair),
-  ``lam_n`` and ``lam_t`` (on both nodes of a pair, 0 elsewhere); cell attributes ``body`` and,
+  ``lam_n`` and ``lam_t`` (the pair's nodal forces, on both nodes of a pair, 0 elsewhere: summed
+  over all nodes they count each force twice), and, when the geometry knows the slave
+  boundary's tributary lengths, ``contact_pressure`` and ``contact_shear`` (λν/ℓ and λτ/ℓ on
+  the slave node of each pair only, 0 elsewhere: tractions, force per unit length of the slave
+  boundary: their sum times ℓ over the slave nodes is the contact force); cell attributes ``body`` and,
   when the material is known, ``von_mises``.  The first grid holds the mesh; the others include
   it (``xi:include``), as dolfinx's own time series do.
 * :func:`export_path` -- the same for a :class:`~cfcontact.path.SolutionPath`: all solutions at
@@ -229,6 +233,15 @@ def _pair_field(geometry, values) -> np.ndarray:
     return out
 
 
+def _traction_field(geometry, values) -> np.ndarray:
+    """values / tributary length on the first (slave) node of each pair, 0 elsewhere."""
+    nodes = np.asarray(geometry.contact_nodes, dtype=int).reshape(-1, 2)[:, 0]
+    trib = np.asarray(geometry.tributary, dtype=float).ravel()
+    out = np.zeros(len(geometry.points))
+    out[nodes] = np.asarray(values, dtype=float).ravel() / trib
+    return out
+
+
 def _fmt(a) -> str:
     """Array as XML text, one row per line; floats with repr (round-trip exact)."""
     a = np.asarray(a)
@@ -290,8 +303,9 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
 
     A temporal collection ``collection_name`` with one grid per solution: Time = 0, 1, 2, ...;
     grid name :func:`grid_name` (index and α) and an ``<Information Name="alpha">``.  Attributes
-    (see the module doc): displacement, contact_state, lam_n, lam_t, body and von_mises (when
-    ``material`` or ``geometry.material`` is known).  ``solutions`` may be a generator (it is
+    (see the module doc): displacement, contact_state, lam_n, lam_t, contact_pressure and
+    contact_shear (when ``geometry.tributary`` is known), body and von_mises (when ``material``
+    or ``geometry.material`` is known).  ``solutions`` may be a generator (it is
     written as it comes); ``alphas`` overrides each solution's α.  The file is written to a
     temporary name and renamed: a failure leaves no partial file.  Returns the file name.
     """
@@ -304,6 +318,8 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
     if material is not None:
         cell_material(geometry, material)  # check before writing anything
     alphas = None if alphas is None else [float(a) for a in alphas]
+    trib = getattr(geometry, "tributary", None)
+    tractions = trib is not None and np.all(np.asarray(trib, dtype=float) > 0)
     P = np.asarray(geometry.points, dtype=float)
     points3 = np.column_stack([P[:, :2], np.zeros(len(P))])
     body = np.asarray(geometry.cell_body).astype(np.int64)
@@ -342,6 +358,9 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
                 fh.write(_attribute("contact_state", "Node", codes, 8))
                 fh.write(_attribute("lam_n", "Node", _pair_field(geometry, sol.lam_n), 8))
                 fh.write(_attribute("lam_t", "Node", _pair_field(geometry, sol.lam_t), 8))
+                if tractions:
+                    fh.write(_attribute("contact_pressure", "Node", _traction_field(geometry, sol.lam_n), 8))
+                    fh.write(_attribute("contact_shear", "Node", _traction_field(geometry, sol.lam_t), 8))
                 fh.write(_attribute("body", "Cell", body, 8))
                 if material is not None:
                     fh.write(_attribute("von_mises", "Cell", von_mises(geometry, u, material, alpha), 8))

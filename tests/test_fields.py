@@ -193,7 +193,8 @@ def test_xdmf_attributes_equal_the_source_exactly(system, tmp_path):
         assert grid.get("Name") == fields.grid_name(t, sol.alpha) and repr(sol.alpha) in grid.get("Name")
         att = {a.get("Name"): (a.get("Center"), a.get("AttributeType"), _data(a.find("DataItem")))
                for a in grid.findall("Attribute")}
-        assert set(att) == {"displacement", "contact_state", "lam_n", "lam_t", "body", "von_mises"}
+        assert set(att) == {"displacement", "contact_state", "lam_n", "lam_t", "contact_pressure", "contact_shear",
+                            "body", "von_mises"}
         U = np.zeros((len(geom.points), 3))
         U[geom.dof_node, geom.dof_comp] = sol.u
         state, ln, lt = _expected_node_fields(geom, sol)
@@ -205,6 +206,16 @@ def test_xdmf_attributes_equal_the_source_exactly(system, tmp_path):
             assert att[name][:2] == (center, kind), name
             np.testing.assert_array_equal(att[name][2], values, err_msg=name)
         assert np.sum(state >= 0) == 2 * system.m  # both nodes of every pair
+        # the tractions: on the slave nodes only; times the tributary lengths they give back the
+        # contact forces, so their integral over the slave boundary is the total (no double count)
+        slave = np.asarray(geom.contact_nodes)[:, 0]
+        for name, lam in (("contact_pressure", sol.lam_n), ("contact_shear", sol.lam_t)):
+            assert att[name][:2] == ("Node", "Scalar"), name
+            values = att[name][2].ravel()
+            np.testing.assert_allclose(values[slave] * geom.tributary, lam, rtol=1e-14, atol=0, err_msg=name)
+            assert not np.any(np.delete(values, slave)), name
+        assert np.sum(att["contact_pressure"][2].ravel()[slave] * geom.tributary) == pytest.approx(sol.lam_n.sum())
+        assert sol.lam_n.max() > 0
 
 
 def test_xdmf_read_by_dolfinx(system, tmp_path):
