@@ -283,7 +283,7 @@ def test_a_path_saved_without_its_material(small, tmp_path, capsys):
     grid = ET.parse(x).getroot().find("Domain/Grid").findall("Grid")
     assert len(grid) == 1
     names = [a.get("Name") for a in grid[0].findall("Attribute")]
-    assert names == ["displacement", "contact_state", "lam_n", "lam_t", "body"]
+    assert names == ["displacement", "contact_state", "lam_n", "lam_t", "contact_pressure", "contact_shear", "body"]
     disp = np.array(grid[0].find("Attribute/DataItem").text.split(), dtype=float).reshape(-1, 3)
     sol = path.solutions_at(0.5)[0]
     np.testing.assert_array_equal(disp[:, :2], path.geometry.displacement_field(sol.u, 0.5))
