@@ -40,8 +40,10 @@ def _rotate_loads(loads, angle, kind):
     if not hasattr(loads, "items"):
         return loads
     for k, v in loads.items():
-        if kind == "traction" and (hasattr(v, "items") or (isinstance(v, (list, tuple)) and v and not all(
-                isinstance(t, (int, float)) for t in v))):
+        # a windowed traction (a dict) or a list of tractions (with a dict or a pair among its items); a
+        # pair of numbers of any type (NumPy scalars, number strings) is one uniform traction
+        if kind == "traction" and (hasattr(v, "items") or (isinstance(v, (list, tuple)) and any(
+                hasattr(t, "items") or (hasattr(t, "__len__") and not isinstance(t, str)) for t in v))):
             raise InputError(f"traction {k!r}: windowed tractions ({v!r}) cannot be combined with angle={angle:g} "
                              f"(their 'x'/'y' windows would be in the rotated frame); use angle=0 or uniform tractions")
     return {k: _rotate(v, angle) for k, v in loads.items()}
