@@ -86,6 +86,9 @@ def _material_meta(value, groups):
 
 
 def _vector2(value, what):
+    flat = [value] if isinstance(value, (str, bytes)) else np.asarray(value, dtype=object).reshape(-1)
+    if any(isinstance(v, (bool, np.bool_, str, bytes)) for v in flat):  # (float() takes True and "1e6")
+        raise InputError(f"{what} must be a 2-vector (x, y) of numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -673,3 +673,18 @@ def test_a_boolean_tag_and_a_piece_given_two_values_are_refused():
     same = _renamed({}, clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": -0.01}, 12: {"y": -0.01}})
     once = _renamed({}, clamp=("bottom2",), dirichlet={"top1": {"x": 0.0, "y": -0.01}})
     assert same.n == once.n and np.array_equal(same.loads_numpy()[1], once.loads_numpy()[1])
+
+
+def test_loads_of_booleans_or_strings_are_refused():
+    """A traction or body force of a boolean or of number strings is refused naming it (float()
+    would have taken True as 1 and "1e6" as a number: E = True is refused already)."""
+    for kw, words in (({"tractions1": {"top1": (True, -1e7)}}, "tractions1['top1']"),
+                      ({"tractions1": {"top1": ("1e6", "-1e7")}}, "tractions1['top1']"),
+                      ({"body_force1": (True, 1.0)}, "body_force1"),
+                      ({"tractions1": {"top1": {"value": (0.0, "1"), "x": (0.0, 1.0)}}}, "tractions1['top1']['value']")):
+        with pytest.raises(InputError, match=r"must be a 2-vector \(x, y\) of numbers, got") as exc:
+            two_blocks(nx=2, ny=1, **kw)
+        assert words in str(exc.value), (words, str(exc.value))
+    ok = two_blocks(nx=2, ny=1, tractions1={"top1": (np.float32(1e6), np.int64(-10 ** 7))})
+    ref = two_blocks(nx=2, ny=1, tractions1={"top1": (1e6, -1e7)})
+    np.testing.assert_array_equal(ok.loads_numpy()[0], ref.loads_numpy()[0])

@@ -246,14 +246,13 @@ def test_malformed_loads_of_a_turned_model_are_reported_as_unturned(loads, words
             cfcontact.two_blocks(nx=2, ny=1, angle=angle, **loads)
 
 
-@pytest.mark.parametrize("traction", [(np.float32(1e6), np.int64(-10**7)), ("1e6", "-1e7")],
-                         ids=["numpy-scalars", "strings"])
+@pytest.mark.parametrize("traction", [(np.float32(1e6), np.int64(-10**7)), (np.float64(1e6), -10**7)],
+                         ids=["numpy-scalars", "mixed"])
 def test_a_turned_model_takes_a_uniform_traction_of_any_numbers(traction):
     """two_blocks(angle=10) with a uniform traction given as a pair of NumPy scalars (float32,
-    int64), or of number strings (which the unturned model takes): its load vector is the
-    unturned model's turned by 10 degrees node by node, as with Python floats (before: refused as
-    a "windowed traction" that cannot be turned); a windowed traction and lists of tractions are
-    still refused with the angle."""
+    int64) or of mixed number types: its load vector is the unturned model's turned by 10 degrees
+    node by node, as with Python floats (before: refused as a "windowed traction" that cannot be
+    turned); a windowed traction and lists of tractions are still refused with the angle."""
     def loads(angle, t):
         s = cfcontact.two_blocks(nx=2, ny=1, angle=angle, tractions1={"top1": t}, tractions2={})
         return s.loads_numpy()[0].reshape(-1, 2)
