@@ -218,7 +218,7 @@ def _loose_lines(model, groups):
 
 def _read_model(model_or_path, comm, root=0):
     """(mesh, cell_tags, facet_tags, groups, source) from a gmsh model (rank 0) or a .msh path."""
-    import gmsh
+    gmsh = compat.import_gmsh()
 
     is_path = isinstance(model_or_path, (str, os.PathLike))
     source = os.fspath(model_or_path) if is_path else "gmsh model"

@@ -27,7 +27,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Optional
 
 from cfcontact.errors import InputError
-from cfcontact.interrupts import python_sigint, sigint_deferred  # noqa: F401 (the CLI imports them from here)
+from cfcontact.interrupts import import_gmsh, python_sigint, sigint_deferred  # noqa: F401 (the CLI imports some)
 from cfcontact.material import DEFAULT_MATERIAL, PLANES, check_modulus, check_poisson
 from cfcontact.options import BACKENDS, MAX_FRICTION, MAX_TOL, METHODS, AlphaSpan, PathOptions, unused_options
 from cfcontact.pairing import OBSTACLE_KEYS, OBSTACLE_OPTIONAL, PAIRINGS
@@ -505,6 +505,7 @@ def _file_sha256(path):
 
 def _geometry_script(kind):
     """The gmsh script module of a built-in kind (imports gmsh)."""
+    import_gmsh()
     from cfcontact.meshes import arc_on_block, cylinder_on_block, rounded_punch, two_blocks
 
     python_sigint()
@@ -811,8 +812,7 @@ def _model_groups(kind, geometry) -> dict:
     if kind != "msh":
         tags = _geometry_script(kind).TAGS
         return {tags[name]: name for name in builtin_groups(kind, geometry)}
-    import gmsh
-
+    gmsh = import_gmsh()
     python_sigint()
     from cfcontact import compat
     from cfcontact.meshes.common import convention_mismatch, volume_problem
@@ -925,9 +925,9 @@ def _arc_size(geo):
 
 def _msh_size(geo):
     """(nodes, contact1 nodes) of a .msh file, read with gmsh."""
-    import gmsh
-
     from cfcontact import compat
+
+    gmsh = import_gmsh()
 
     with compat.gmsh_model("cfcontact-size-probe") as model:
         try:

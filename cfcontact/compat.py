@@ -29,6 +29,7 @@ import os
 import re
 import sys
 import tempfile
+import threading
 import time
 
 import numpy as np
@@ -39,7 +40,7 @@ import dolfinx.fem.petsc
 import dolfinx.mesh
 from petsc4py import PETSc
 
-from cfcontact.interrupts import python_sigint
+from cfcontact.interrupts import import_gmsh, python_sigint
 
 
 def parse_version(text: str) -> tuple:
@@ -275,7 +276,7 @@ def owned_vector_values(b, V) -> np.ndarray:
 # --------------------------------------------------------------------- gmsh
 def gmsh_is_initialized() -> bool:
     """Whether the gmsh API is initialised (gmsh >= 4.9 has isInitialized; 4.8 does not)."""
-    import gmsh
+    gmsh = import_gmsh()
 
     if hasattr(gmsh, "isInitialized"):
         return bool(gmsh.isInitialized())
@@ -317,7 +318,7 @@ def gmsh_model(name: str = "cfcontact"):
     Initialises gmsh (quietly) if needed and finalises it again only in that case;
     a caller's current model is restored.
     """
-    import gmsh
+    gmsh = import_gmsh()
 
     started = not gmsh_is_initialized()
     if started:
@@ -341,4 +342,19 @@ def gmsh_model(name: str = "cfcontact"):
                 gmsh.model.setCurrent(previous)
         finally:
             if started:
-                gmsh.finalize()
+                _gmsh_finalize(gmsh)
+
+
+def _gmsh_finalize(gmsh):
+    """``gmsh.finalize()``.  gmsh 4.8 puts back there the SIGINT handler it replaced when it was
+    imported, and Python sets handlers in the main thread only: in another thread (a model built
+    by a worker thread) that step is left out -- the handler is the main thread's business."""
+    saved = getattr(gmsh, "oldsig", None)
+    if saved is None or threading.current_thread() is threading.main_thread():
+        gmsh.finalize()
+        return
+    gmsh.oldsig = None
+    try:
+        gmsh.finalize()
+    finally:
+        gmsh.oldsig = saved

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 
 
@@ -18,6 +19,36 @@ def python_sigint():
     handler it raises KeyboardInterrupt once gmsh's C code returns (main thread only)."""
     if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.SIG_DFL:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def import_gmsh():
+    """The gmsh module, importable from any thread.  gmsh 4.8 sets SIGINT's handler when it is
+    imported, and Python sets handlers in the main thread only: imported first by another thread
+    (a model built by a worker thread), ``import gmsh`` failed ("signal only works in main
+    thread").  There that one step is left out (Python's handler stays, where
+    :func:`python_sigint` would put it back anyway); calls of the main thread meanwhile go
+    through."""
+    if "gmsh" in sys.modules or threading.current_thread() is threading.main_thread():
+        import gmsh
+
+        return gmsh
+    real = signal.signal
+
+    def main_thread_only(signum, handler):
+        if threading.current_thread() is threading.main_thread():
+            return real(signum, handler)
+        return signal.getsignal(signum)
+
+    with _GMSH_IMPORT:
+        signal.signal = main_thread_only
+        try:
+            import gmsh
+        finally:
+            signal.signal = real
+    return gmsh
+
+
+_GMSH_IMPORT = threading.Lock()
 
 
 def caused_by_interrupt(exc: BaseException) -> bool:

@@ -32,6 +32,16 @@ def _rotate(vec, angle):
     return (c * x - s * y, s * x + c * y)
 
 
+def _script(name):
+    """The gmsh script module cfcontact.meshes.<name> (it imports gmsh: from any thread)."""
+    import importlib
+
+    from cfcontact.interrupts import import_gmsh
+
+    import_gmsh()
+    return importlib.import_module(f"cfcontact.meshes.{name}")
+
+
 def _rotate_loads(loads, angle, kind):
     if loads is None or angle == 0.0:
         return loads
@@ -113,7 +123,7 @@ def two_blocks(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    from cfcontact.meshes import two_blocks as geo  # imports gmsh
+    geo = _script("two_blocks")
     params = geo.check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
     if clamp is None:
         clamp = ("left1",) if foundation else ("left1", "left2")
@@ -184,7 +194,7 @@ def arc_on_block(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
-    from cfcontact.meshes import arc_on_block as geo  # imports gmsh
+    geo = _script("arc_on_block")
     params = geo.check_parameters(radius=radius, half_angle=half_angle, height=height, height2=height2,
                                   nx=nx, ny=ny, ny2=ny2, cell=cell)
     kwargs = dict(
@@ -279,7 +289,7 @@ def cylinder_on_block(*, radius=1.0, width=4.0, depth=2.0, zone=0.3, size=0.02, 
     (``ContactGeometry.tributary`` turns lam_n into a pressure).  Tags: ``contact1, top1, right1,
     left1, sym1, contact2, top2, bottom2, right2, left2, sym2``.
     """
-    from cfcontact.meshes import cylinder_on_block as geo
+    geo = _script("cylinder_on_block")
 
     params = geo.check_parameters(radius=radius, width=width, depth=depth, zone=zone, size=size, size_far=size_far,
                                   growth=growth, gap0=gap0, cell=cell, half=half)
@@ -300,7 +310,7 @@ def rounded_punch(*, half_width=0.5, edge_radius=0.1, height=0.5, width=4.0, dep
     contact keywords as :func:`cylinder_on_block` (the punch's top is moved by ``(shift,
     -indentation)``, default indentation from 0 to 0.002).
     """
-    from cfcontact.meshes import rounded_punch as geo
+    geo = _script("rounded_punch")
 
     params = geo.check_parameters(half_width=half_width, edge_radius=edge_radius, height=height, width=width,
                                   depth=depth, zone=zone, size=size, size_far=size_far, growth=growth, gap0=gap0,
