@@ -91,8 +91,9 @@ class PairingWarning(UserWarning):
 
 
 class IgnoredOptionWarning(UserWarning):
-    """A path option given explicitly that the chosen method does not use (``tree=True`` with
-    ``method="seed"``, a seed step option with ``method="exact"``): the run goes on without it."""
+    """An option given explicitly that is not used: a path option the chosen method does not use
+    (``tree=True`` with ``method="seed"``, a seed step option with ``method="exact"``), body 2's
+    mesh with ``two_blocks(foundation=True)``.  The run goes on without it."""
 
 
 class MeshWarning(UserWarning):

@@ -7,9 +7,10 @@ geometry scripts are imported inside the functions.
 from __future__ import annotations
 
 import math
+import warnings
 from types import MappingProxyType
 
-from cfcontact.errors import InputError
+from cfcontact.errors import IgnoredOptionWarning, InputError
 
 __all__ = ["two_blocks", "arc_on_block", "cylinder_on_block", "rounded_punch", "DEFAULT_TRACTIONS1",
            "DEFAULT_TRACTIONS2"]
@@ -123,6 +124,11 @@ def two_blocks(
     from cfcontact.assembly import assemble_contact_system
 
     comm = MPI.COMM_WORLD if comm is None else comm
+    given = [f"{k}={v!r}" for k, v in (("nx2", nx2), ("ny2", ny2), ("height2", height2)) if v is not None]
+    if foundation and given:  # (a case file refuses them)
+        warnings.warn(f"{', '.join(given)} ignored: body 2's mesh, but foundation=True builds body 1 alone",
+                      IgnoredOptionWarning, stacklevel=2)
+        nx2 = ny2 = height2 = None
     geo = _script("two_blocks")
     params = geo.check_parameters(nx, ny, length, height, cell, angle, nx2=nx2, ny2=ny2, height2=height2)
     if clamp is None:

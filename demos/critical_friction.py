@@ -30,7 +30,8 @@ MODELS = [
     ("two steel blocks (height2 = 0.5), quadrilaterals", dict(BLOCKS_MODEL)),
     ("two steel blocks, triangles", dict(BLOCKS_MODEL, cell="triangle")),
     ("equal blocks (height2 = height)", dict(BLOCKS_MODEL, height2=BLOCKS_MODEL["height"])),
-    ("steel block on a rigid foundation", dict(BLOCKS_MODEL, foundation=True)),
+    ("steel block on a rigid foundation", dict({k: v for k, v in BLOCKS_MODEL.items() if k != "height2"},
+                                               foundation=True)),
 ]
 
 

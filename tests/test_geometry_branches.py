@@ -447,3 +447,11 @@ def test_part_d_summary_without_the_seed_method():
                  "starts": {"ssnm": 1, "homotopy": 1, "-": 1}, "homotopy_start_median_time": 3.0,
                  "ssnm_start_median_time": 1.0, "homotopy_over_ssnm": 3.0, "homotopy_over_given_start": 2.0,
                  "homotopy_over_given_start_max": 2.0, "homotopy_same_path": 1}
+
+
+def test_body_2_mesh_with_a_foundation_is_named_as_ignored():
+    """two_blocks(foundation=True) has no body 2: nx2, ny2, height2 given with it warn that they
+    are ignored (a case file refuses them) and the model is the one built without them."""
+    with pytest.warns(cfcontact.IgnoredOptionWarning, match=r"nx2=7, height2=0.3 ignored: body 2's mesh"):
+        system = cfcontact.two_blocks(nx=3, ny=1, foundation=True, nx2=7, height2=0.3)
+    assert system.checksum() == cfcontact.two_blocks(nx=3, ny=1, foundation=True).checksum()
