@@ -72,6 +72,27 @@ def test_regular_K_factored_by_mumps_still_solves_as_the_full_backend():
         assert np.abs(yc - yf).max() <= 1e-6 * np.abs(yf).max(), state
 
 
+@pytest.mark.parametrize("solver_type", [None, "mumps"])
+def test_a_stiffness_contrast_of_1e12_is_not_taken_for_singular(solver_type):
+    """Steel bonded on a body 1e12 times softer, on a mesh past the envelope factorization's size
+    (n = 5040): K is regular (condition number some 1e14 to 1e15), neither PETSc's Cholesky nor
+    MUMPS (which detects null pivots) refuses it, and the condensed multipliers of every uniform
+    state agree with the full J(Z) backend's (a bound |K| |x| <= 1e14 |b| on the set-up's probe
+    had refused it: 3.4e14)."""
+    pytest.importorskip("dolfinx")
+    from cfcontact.models import two_blocks
+
+    system = two_blocks(nx=60, ny=20, E={"body1": 2.1e11, "body2": 2.1e-1}, friction=0.6)
+    assert system.n == 5040
+    cond = CondensedSolver(system, SolverOptions(solver_type=solver_type))
+    full = DirNeuSolver(system)
+    n = system.n
+    for state in ("open", "stick", "slip+", "slip-"):
+        Z = InactiveSets.from_states([state] * system.m)
+        yc, yf = cond.solve(Z, system.load(0.3)), full.solve(Z, system.load(0.3))
+        assert np.abs(yc[n:] - yf[n:]).max() <= 1e-6 * max(np.abs(yf[n:]).max(), 1e-300), state
+
+
 def test_schur_true_without_mumps_names_the_factorization_asked_for():
     """schur=True with K factored by PETSc's own Cholesky: InputError naming 'petsc' (before the
     fix the message said "not None": the PC's solver type is not set before its set-up)."""
