@@ -36,6 +36,15 @@ def one_node_solutions(K, F, f):
     return sols
 
 
+def alpha_of_tan(system, tan):
+    """alpha at which the one-node load f(alpha) has direction atan(tan) (closed form)."""
+    th = np.arctan(tan)
+    f1, f2 = system.loads_numpy()
+    c1 = f1[0] * np.sin(th) - f1[1] * np.cos(th)
+    c2 = f2[0] * np.sin(th) - f2[1] * np.cos(th)
+    return c1 / (c1 - c2)
+
+
 def frictionless_dual(K, N, f, gap=None):
     """(u, lam) of the frictionless problem K u + N^T lam = f, N u <= g, lam >= 0, lam^T (N u - g) = 0."""
     K = sp.csc_matrix(K)

@@ -26,18 +26,9 @@ from cfcontact.lumped import one_node, random_system
 from cfcontact.rational import RationalBranch, friction_pattern, solver_at
 from cfcontact.solution_path import SolutionPath
 from cfcontact.ssnm import verify
-from reference import one_node_solutions
+from reference import alpha_of_tan, one_node_solutions
 
 K1 = np.array([[1.0, 0.5], [0.5, 1.0]])
-
-
-def alpha_of_tan(system, tan):
-    """alpha at which the one-node load f(alpha) has direction atan(tan) (closed form)."""
-    th = np.arctan(tan)
-    f1, f2 = system.loads_numpy()
-    c1 = f1[0] * np.sin(th) - f1[1] * np.cos(th)
-    c2 = f2[0] * np.sin(th) - f2[1] * np.cos(th)
-    return c1 / (c1 - c2)
 
 
 def set_changes(path):

@@ -27,19 +27,10 @@ from cfcontact.friction import friction_system, trace_friction_path, worst_resid
 from cfcontact.lumped import one_node, random_system
 from cfcontact.map_run import default_friction_range, map_case
 from cfcontact.system import ContactSystem
-from reference import one_node_solutions
+from reference import alpha_of_tan, one_node_solutions
 
 K1 = np.array([[1.0, 0.5], [0.5, 1.0]])  # the cusp (k_tt / k_tn) at F = 2
 FOLDS_CASE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos", "cases", "folds.toml")
-
-
-def alpha_of_tan(system, tan):
-    """alpha at which the one-node load f(alpha) has direction atan(tan) (closed form)."""
-    th = np.arctan(tan)
-    f1, f2 = system.loads_numpy()
-    c1 = f1[0] * np.sin(th) - f1[1] * np.cos(th)
-    c2 = f2[0] * np.sin(th) - f2[1] * np.cos(th)
-    return c1 / (c1 - c2)
 
 
 def two_nodes(Ka, Kb, fa1, fa2, fb1=None, fb2=None, friction=1.0):
