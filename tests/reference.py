@@ -45,6 +45,34 @@ def alpha_of_tan(system, tan):
     return c1 / (c1 - c2)
 
 
+def state_solve(K, N, T, F, gap, states, f):
+    """y = (u, lam_n, lam_t) of fixed per-node states for the load f, from J(Z) written out densely
+    (docs/theory.md (5)): K u + N^T lam_n + T^T lam_t = f, and per node: open lam_n = lam_t = 0;
+    stick N u = g, T u = 0; slip+- N u = g, lam_t = +-F lam_n.  None if J(Z) is singular."""
+    n, m = K.shape[0], N.shape[0]
+    A = np.zeros((n + 2 * m, n + 2 * m))
+    b = np.zeros(n + 2 * m)
+    A[:n, :n], A[:n, n:n + m], A[:n, n + m:] = K, N.T, T.T
+    b[:n] = f
+    for i, st in enumerate(states):
+        rn, rt = n + i, n + m + i
+        if st == "open":
+            A[rn, n + i] = 1.0
+            A[rt, n + m + i] = 1.0
+        else:
+            A[rn, :n] = N[i]
+            b[rn] = gap[i]
+            if st == "stick":
+                A[rt, :n] = T[i]
+            else:
+                A[rt, n + m + i] = 1.0
+                A[rt, n + i] = -F[i] if st == "slip+" else F[i]
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return None
+
+
 def frictionless_dual(K, N, f, gap=None):
     """(u, lam) of the frictionless problem K u + N^T lam = f, N u <= g, lam >= 0, lam^T (N u - g) = 0."""
     K = sp.csc_matrix(K)

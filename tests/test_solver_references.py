@@ -21,7 +21,7 @@ import cfcontact
 from cfcontact.condensed import CondensedSolver
 from cfcontact.lumped import one_node, random_system
 from cfcontact.ssnm import DirNeuSolver, InactiveSets, SolverOptions
-from reference import frictionless_dual
+from reference import frictionless_dual, state_solve
 
 STATES = ("open", "stick", "slip+", "slip-")
 
@@ -35,26 +35,11 @@ def _dense(system):
 def dense_dirneu(system, states, f):
     """y = (u, lam_n, lam_t) of DirNeu for per-node states, from J(Z) written out densely."""
     K, N, T, _, _ = _dense(system)
-    n, m = system.n, system.m
-    F = np.broadcast_to(np.asarray(system.friction, dtype=float), (m,))
-    g = np.asarray(system.gap, dtype=float)
-    J = np.zeros((n + 2 * m, n + 2 * m))
-    r = np.zeros(n + 2 * m)
-    J[:n, :n], J[:n, n:n + m], J[:n, n + m:] = K, N.T, T.T
-    r[:n] = f
-    for i, s in enumerate(states):
-        rn, rt = n + i, n + m + i
-        if s == "open":
-            J[rn, n + i] = 1.0
-            J[rt, n + m + i] = 1.0
-        else:
-            J[rn, :n], r[rn] = N[i], g[i]
-            if s == "stick":
-                J[rt, :n] = T[i]
-            else:
-                sign = 1.0 if s == "slip+" else -1.0
-                J[rt, n + m + i], J[rt, n + i] = 1.0, -sign * F[i]
-    return np.linalg.solve(J, r)
+    F = np.broadcast_to(np.asarray(system.friction, dtype=float), (system.m,))
+    y = state_solve(K, N, T, F, np.asarray(system.gap, dtype=float), states, f)
+    if y is None:
+        raise np.linalg.LinAlgError(f"J(Z) of {states} is singular")
+    return y
 
 
 def satisfies(system, y, f, tol=1e-9):
