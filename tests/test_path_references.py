@@ -435,3 +435,34 @@ def test_obstacle_pairing_of_a_flat_boundary_pressed_into_a_disc():
     r = np.hypot(x, -1e-3 + 1.0)
     assert np.allclose(pr.gap, r - 1.0, rtol=1e-9, atol=1e-15) and (pr.gap < 0).sum() >= 3
     assert np.allclose(pr.normals, -np.column_stack([x, np.full_like(x, 1.0 - 1e-3)]) / r[:, None], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("angle, state", [(60.0, "slip+"), (120.0, "slip-"), (80.0, "stick")])
+def test_a_node_closing_with_no_slip_continues_as_the_closed_form(angle, state):
+    """Two uncoupled nodes; node B (gap 0.1) closes at alpha = 1/2 exactly where its tangential
+    displacement vanishes too (its load passes through K (0, g): the apex of its shifted problem,
+    while node A is loaded), so the direction it slips in is decided by the lexicographic rule.
+    Beyond, node B's solutions are those of the one-node closed form for the load (alpha - 1/2) d
+    (d at ``angle`` degrees: one solution each, slip+, slip- or stick)."""
+    K1, K2 = np.array([[1.0, 0.3], [0.3, 1.0]]), np.array([[1.0, 0.5], [0.5, 1.0]])
+    K = np.zeros((4, 4))
+    K[:2, :2], K[2:, 2:] = K1, K2
+    N = np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    T = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
+    g, a_star, F = 0.1, 0.5, 0.3
+    d = np.array([np.cos(np.radians(angle)), np.sin(np.radians(angle))])
+    fB = K2 @ np.array([0.0, g])
+    f1 = np.concatenate([[0.2, 1.0], fB - a_star * d])
+    f2 = np.concatenate([[0.5, 1.2], fB + (1.0 - a_star) * d])
+    system = cfcontact.ContactSystem.from_arrays(K, N, T, f1, f2, F, gap=np.array([0.0, g]))
+    path = cfcontact.trace_path(system, 0.0, 1.0, method="exact")
+    assert path.status == "completed"
+    closing = [t for t in path.transitions if t.node == 1]
+    assert len(closing) == 1 and abs(closing[0].alpha - a_star) <= 1e-12
+    for a in (0.5 + 1e-9, 0.7, 1.0):
+        (ref_state, ref), = one_node_solutions(K2, F, (a - a_star) * d)
+        sols = path.solutions_at(a)
+        assert ref_state == state and [s.states()[1] for s in sols] == [state]
+        sol = sols[0]
+        got = np.array([sol.u[2], sol.u[3] - g, sol.lam_n[1], sol.lam_t[1]])
+        np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12)
