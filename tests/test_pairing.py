@@ -414,3 +414,25 @@ def test_a_roller_node_on_a_rigid_disc_keeps_its_free_direction():
     radial = x[rest] - (xc, -R - d)
     assert np.allclose(system.gap[rest], np.hypot(*radial.T) - R, rtol=1e-12)
     assert np.allclose(system.geometry.normals[rest, :2], -radial / np.hypot(*radial.T)[:, None], atol=1e-12)
+
+
+def test_a_roller_node_of_a_turned_block_on_a_sloped_line():
+    """A block turned by 10 degrees on a rigid line of slope 0.05, its left edge on a roller
+    (u_x = 0): the corner node's own normal is tilted by 10 degrees and the line's by 3, but the
+    node can only move vertically, so its row is along y and its gap the vertical distance to the
+    line (0.1), not the distance along either normal (0.1007 along its own).  The other nodes: the
+    signed distance to the line, along the line's normal."""
+    slope, y0 = 0.05, -0.1
+    nv = np.array([-slope, 1.0]) / np.hypot(slope, 1.0)
+    system = cfcontact.two_blocks(nx=8, ny=2, length=2.0, height=0.5, foundation=True, clamp=(), angle=10.0,
+                                  obstacle={"kind": "line", "point": (0.0, y0), "normal": tuple(nv)},
+                                  dirichlet={"top1": {"x": 0.0, "y": (0.0, -0.02)}, "left1": {"x": 0.0}},
+                                  tractions1={}, tractions2={})
+    x = system.geometry.contact_points[:, :2]
+    corner = np.flatnonzero(np.hypot(*x.T) <= 1e-12)
+    assert corner.size == 1 and system.no_tangent[corner].all() and system.no_tangent.sum() == 1
+    assert np.allclose(system.geometry.normals[corner, :2], [[0.0, -1.0]], atol=1e-14)
+    assert system.gap[corner][0] == pytest.approx(-y0, rel=1e-12)
+    rest = np.setdiff1d(np.arange(system.m), corner)
+    np.testing.assert_allclose(system.gap[rest], (x[rest] - (0.0, y0)) @ nv, rtol=1e-12)
+    np.testing.assert_allclose(system.geometry.normals[rest, :2], np.tile(-nv, (rest.size, 1)), atol=1e-14)
