@@ -116,6 +116,11 @@ def test_two_blocks_script_builds_non_matching_blocks_and_refuses_a_bad_angle(tm
     err = capsys.readouterr().err
     assert info.value.code == 2 and "angle" in err and "nan" in err and "finite" in err
     assert not (tmp_path / "bad.msh").exists()
+    with pytest.raises(SystemExit) as info:  # body 2's mesh with a rigid foundation (no body 2)
+        two_blocks._main([str(tmp_path / "bad.msh"), "--foundation", "--nx2", "7", "--height2", "0.3"])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "--nx2 7, --height2 0.3: body 2's mesh, but --foundation" in err
+    assert not (tmp_path / "bad.msh").exists()
 
 
 def test_arc_script_meshes_the_seat_with_its_own_thickness_and_triangles(tmp_path):

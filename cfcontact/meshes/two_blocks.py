@@ -150,6 +150,9 @@ def _main(argv=None):
     ap.add_argument("--height2", type=float, default=None)
     ap.add_argument("--foundation", action="store_true", help="body 1 only (rigid foundation)")
     args = ap.parse_args(argv)
+    body2 = [f"--{k} {getattr(args, k)}" for k in ("nx2", "ny2", "height2") if getattr(args, k) is not None]
+    if args.foundation and body2:
+        ap.error(f"{', '.join(body2)}: body 2's mesh, but --foundation builds body 1 alone")
     try:
         params = check_parameters(args.nx, args.ny, args.length, args.height, args.cell, args.angle,
                                   nx2=args.nx2, ny2=args.ny2, height2=args.height2)
