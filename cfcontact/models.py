@@ -52,7 +52,7 @@ def _rotate_loads(loads, angle, kind):
         return loads
     for k, v in loads.items():
         # a windowed traction (a dict) or a list of tractions (with a dict or a pair among its items); a
-        # pair of numbers of any type (NumPy scalars, number strings) is one uniform traction
+        # pair of numbers of any numeric type (NumPy scalars too) is one uniform traction
         if kind == "traction" and (hasattr(v, "items") or (isinstance(v, (list, tuple)) and any(
                 hasattr(t, "items") or (hasattr(t, "__len__") and not isinstance(t, str)) for t in v))):
             raise InputError(f"traction {k!r}: windowed tractions ({v!r}) cannot be combined with angle={angle:g} "

@@ -536,3 +536,21 @@ def test_output_keys_are_validated(tmp_path, capsys, key, value):
     err = capsys.readouterr().err
     assert f"[output] {key}" in err and "boolean" in err
     assert not (tmp_path / "bad_out").exists() and not (tmp_path / "bad_out.partial").exists()
+
+
+def test_xdmf_tractions_sit_on_the_slave_nodes_of_body_2(tmp_path):
+    """Node-to-segment pairing with contact2 as the slave (body 2's nodes at x = 0.75, 1.5, ...;
+    body 1's at 0.5, 1.0, ...): contact_pressure and contact_shear are lam / tributary length on
+    body 2's slave nodes, every one of them, and 0 on body 1's."""
+    system = cfcontact.two_blocks(nx=6, ny=2, nx2=4, pairing="segment", slave="contact2", friction=0.5)
+    geom = system.geometry
+    sol = cfcontact.ssnm(system, 0.5)
+    assert sol.lam_n.max() > 0
+    fn = fields.write_xdmf(tmp_path / "s.xdmf", geom, [sol])
+    att = {a.get("Name"): _data(a.find("DataItem")).ravel() for a in _grids(fn)[0].findall("Attribute")}
+    P, body = geom.points[:, :2], _node_body(geom)
+    slave = [int(np.flatnonzero((np.hypot(*(P - x).T) <= 1e-12) & (body == 2))[0]) for x in geom.contact_points[:, :2]]
+    assert len(set(slave)) == system.m
+    for name, lam in (("contact_pressure", sol.lam_n), ("contact_shear", sol.lam_t)):
+        np.testing.assert_allclose(att[name][slave] * geom.tributary, lam, rtol=1e-14, atol=0, err_msg=name)
+        assert not np.any(np.delete(att[name], slave)), name
