@@ -233,24 +233,9 @@ def _pair_field(geometry, values) -> np.ndarray:
     return out
 
 
-def _slave_nodes(geometry) -> np.ndarray:
-    """The slave node of each pair: of its (body 1, body 2) nodes the one at its contact point
-    (with node-to-segment pairing the other is the master node of larger weight).  Where both
-    lie there (a master node under the slave node), the slave side is the one the other pairs
-    show; a matching interface (every pair so) counts as body 1's."""
-    nodes = np.asarray(geometry.contact_nodes, dtype=int).reshape(-1, 2)
-    P = np.asarray(geometry.points, dtype=float)[:, :2]
-    at = np.asarray(geometry.contact_points, dtype=float)[:, :2]
-    tol = 1e-9 * max(float(np.ptp(P, axis=0).max(initial=0.0)), 1e-300)
-    on0 = np.hypot(*(P[nodes[:, 0]] - at).T) <= tol
-    on1 = (nodes[:, 1] >= 0) & (np.hypot(*(P[np.maximum(nodes[:, 1], 0)] - at).T) <= tol)
-    body2 = np.sum(on1 & ~on0) > np.sum(on0 & ~on1)
-    return np.where(on1 & (~on0 | body2), nodes[:, 1], nodes[:, 0])
-
-
 def _traction_field(geometry, values) -> np.ndarray:
     """values / tributary length on the slave node of each pair, 0 elsewhere."""
-    nodes = _slave_nodes(geometry)
+    nodes = geometry.slave_nodes()
     trib = np.asarray(geometry.tributary, dtype=float).ravel()
     out = np.zeros(len(geometry.points))
     out[nodes] = np.asarray(values, dtype=float).ravel() / trib

@@ -295,12 +295,11 @@ def _check_solution(geometry, solution):
 
 
 def _contact_xy(geometry, u, magnification, alpha=None):
-    """Deformed positions of the body-1 node of each contact pair."""
+    """Deformed positions of the slave node of each contact pair (body 1's with matching nodes)."""
     X = _deformed_points(geometry, u, magnification, alpha)
-    nodes = np.asarray(geometry.contact_nodes)
-    if nodes.size == 0:
+    if np.asarray(geometry.contact_nodes).size == 0:
         return np.zeros((0, 3))
-    return X[nodes[:, 0]]
+    return X[geometry.slave_nodes()]
 
 
 def _point_size(window_size, cols=1, rows=1):

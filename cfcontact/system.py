@@ -119,6 +119,20 @@ class ContactGeometry:
             U[tab[:, 0].astype(int), tab[:, 1].astype(int)] = (1.0 - alpha) * tab[:, 2] + alpha * tab[:, 3]
         return U
 
+    def slave_nodes(self) -> np.ndarray:
+        """(m,) the slave node of each pair: of its (body 1, body 2) nodes the one at its contact
+        point (with node-to-segment pairing the other is the master node of larger weight).  Where
+        both lie there (a master node under the slave node), the slave side is the one the other
+        pairs show; a matching interface (every pair so) counts as body 1's."""
+        nodes = np.asarray(self.contact_nodes, dtype=int).reshape(-1, 2)
+        P = np.asarray(self.points, dtype=float)[:, :2]
+        at = np.asarray(self.contact_points, dtype=float)[:, :2]
+        tol = 1e-9 * max(float(np.ptp(P, axis=0).max(initial=0.0)) if len(P) else 0.0, 1e-300)
+        on0 = np.hypot(*(P[nodes[:, 0]] - at).T) <= tol
+        on1 = (nodes[:, 1] >= 0) & (np.hypot(*(P[np.maximum(nodes[:, 1], 0)] - at).T) <= tol)
+        body2 = np.sum(on1 & ~on0) > np.sum(on0 & ~on1)
+        return np.where(on1 & (~on0 | body2), nodes[:, 1], nodes[:, 0])
+
     def to_dict(self) -> dict:
         """Plain NumPy arrays (for an .npz; no pickling): the material and obstacle as JSON strings;
         optional entries only when known."""

@@ -554,3 +554,17 @@ def test_xdmf_tractions_sit_on_the_slave_nodes_of_body_2(tmp_path):
     for name, lam in (("contact_pressure", sol.lam_n), ("contact_shear", sol.lam_t)):
         np.testing.assert_allclose(att[name][slave] * geom.tributary, lam, rtol=1e-14, atol=0, err_msg=name)
         assert not np.any(np.delete(att[name], slave)), name
+
+
+@pytest.mark.parametrize("kw, body", [({}, 1), ({"nx2": 4, "pairing": "segment"}, 1),
+                                      ({"nx2": 4, "pairing": "segment", "slave": "contact2"}, 2),
+                                      ({"foundation": True}, 1)])
+def test_slave_nodes_are_at_the_contact_points_on_the_slave_body(kw, body):
+    """ContactGeometry.slave_nodes (where the tractions and the rendered states go): each pair's
+    node at its contact point, on the slave body (body 1 for a matching interface, a rigid
+    foundation and contact1 as slave; body 2 for contact2 as slave, although body 1 has nodes at
+    some of those points too), one per pair."""
+    geom = cfcontact.two_blocks(nx=6, ny=2, **kw).geometry
+    nodes = geom.slave_nodes()
+    np.testing.assert_array_equal(geom.points[nodes, :2], geom.contact_points[:, :2])
+    assert np.all(_node_body(geom)[nodes] == body) and np.unique(nodes).size == len(nodes)
