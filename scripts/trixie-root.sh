@@ -5,6 +5,7 @@
 #   scripts/trixie-root.sh ./demo.sh [ARGS]     # the demo; its output stays in the root (path printed)
 #   scripts/trixie-root.sh .venv/bin/python -c 'import dolfinx; print(dolfinx.__version__)'
 #   scripts/trixie-root.sh                      # an interactive shell in the copy
+#   CFCONTACT_ROOT_SUITE=bookworm scripts/trixie-root.sh ./test.sh   # the same in a fresh Debian 12
 #
 # First use creates the root with `debootstrap --variant=minbase trixie` (a minute or two),
 # from the Debian mirror this host's apt already uses; later runs reuse it. Each run:
@@ -17,7 +18,10 @@
 #   4. runs the command in /root/cfcontact with a clean environment and returns its exit status.
 #
 # Environment:
-#   CFCONTACT_TRIXIE_ROOT    where the root lives (default /var/cache/cfcontact/trixie)
+#   CFCONTACT_ROOT_SUITE     trixie (default) or bookworm: a fresh Debian 12 root, where
+#                            scripts/install.sh installs everything from nothing (the README's
+#                            "fresh machine"); the host's own CA certificates are copied in
+#   CFCONTACT_TRIXIE_ROOT    where the root lives (default /var/cache/cfcontact/<suite>)
 #   CFCONTACT_CHROOT_WORKDIR where the copy goes inside the root (default /root/cfcontact);
 #                            runs on the same workdir are serialised with a lock, so give
 #                            concurrent users different workdirs
@@ -29,16 +33,21 @@
 set -euo pipefail
 
 REPO=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-ROOT=${CFCONTACT_TRIXIE_ROOT:-/var/cache/cfcontact/trixie}
+SUITE=${CFCONTACT_ROOT_SUITE:-trixie}
+case "$SUITE" in
+    trixie) LABEL="Debian 13" ;;
+    bookworm) LABEL="Debian 12" ;;
+    *) printf '[trixie-root] error: CFCONTACT_ROOT_SUITE must be trixie or bookworm, got %s\n' "$SUITE" >&2; exit 1 ;;
+esac
+ROOT=${CFCONTACT_TRIXIE_ROOT:-/var/cache/cfcontact/$SUITE}
 WORK=${CFCONTACT_CHROOT_WORKDIR:-/root/cfcontact}
-SUITE=trixie
 
 say() { printf '[trixie-root] %s\n' "$*" >&2; }
 die() { say "error: $*"; exit 1; }
 
 if [ "$(id -u)" -ne 0 ]; then
     command -v sudo >/dev/null || die "must run as root (no sudo found)"
-    exec sudo --preserve-env=CI,TERM,PYTEST_ADDOPTS,CFCONTACT_TRIXIE_ROOT,CFCONTACT_CHROOT_WORKDIR,CFCONTACT_DEBIAN_MIRROR,CFCONTACT_NO_INSTALL \
+    exec sudo --preserve-env=CI,TERM,PYTEST_ADDOPTS,CFCONTACT_ROOT_SUITE,CFCONTACT_TRIXIE_ROOT,CFCONTACT_CHROOT_WORKDIR,CFCONTACT_DEBIAN_MIRROR,CFCONTACT_NO_INSTALL \
         "$0" "$@"
 fi
 case "$ROOT" in /?*) ;; *) die "CFCONTACT_TRIXIE_ROOT must be an absolute path: $ROOT" ;; esac
@@ -124,7 +133,7 @@ create_root() {
         has_mounts_below "$partial" && die "$partial has mounts below it; unmount them first"
         rm -rf --one-file-system "$partial"
     fi
-    say "creating Debian 13 root at $ROOT from $mirror (debootstrap --variant=minbase, ~1-2 min)"
+    say "creating $LABEL root at $ROOT from $mirror (debootstrap --variant=minbase, ~1-2 min)"
     local keyring=()
     [ -f /usr/share/keyrings/debian-archive-keyring.gpg ] &&
         keyring=(--keyring=/usr/share/keyrings/debian-archive-keyring.gpg)
@@ -138,7 +147,7 @@ create_root() {
         debootstrap --variant=minbase "${keyring[@]}" "$SUITE" "$partial" "$mirror" \
             >"$LOCKDIR/debootstrap.log" 2>&1 || { tail -n 30 "$LOCKDIR/debootstrap.log" >&2; die "debootstrap failed (log: $LOCKDIR/debootstrap.log)"; }
     fi
-    # apt sources like a debian:trixie image: main, updates and (if the host has one) security.
+    # apt sources like a debian:$SUITE image: main, updates and (if the host has one) security.
     rm -f "$partial/etc/apt/sources.list"
     {
         printf 'Types: deb\nURIs: %s\nSuites: %s %s-updates\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
@@ -160,7 +169,7 @@ create_root() {
 }
 
 # Create the root once (global lock: concurrent first uses wait for one debootstrap).
-exec 8>"$LOCKDIR/trixie.create.lock"
+exec 8>"$LOCKDIR/$SUITE.create.lock"
 if [ ! -f "$ROOT/.cfcontact-root" ]; then
     flock -n 8 || { say "waiting for another run creating the root..."; flock 8; }
     if [ ! -f "$ROOT/.cfcontact-root" ]; then
@@ -172,7 +181,7 @@ fi
 exec 8>&-
 
 # One run per workdir at a time.
-exec 9>"$LOCKDIR/trixie$(echo "$WORK" | tr / _).lock"
+exec 9>"$LOCKDIR/$SUITE$(echo "$WORK" | tr / _).lock"
 flock -n 9 || { say "waiting for another run using $WORK in the root..."; flock 9; }
 
 # ---------------------------------------------------------------------------------------------
@@ -185,6 +194,18 @@ tar -C "$REPO" \
     --exclude=.pytest_cache --exclude=.hypothesis --exclude='*.egg-info' \
     -cf - . | tar -C "$DST" -xf -
 cp -L /etc/resolv.conf "$ROOT/etc/resolv.conf" 2>/dev/null || true
+# The host's own CA certificates (a proxy's, say): pip in the root reaches what the host reaches.
+# Debian's ca-certificates takes them in when install.sh installs it, or here once it is there.
+if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
+    mkdir -p "$ROOT/usr/local/share/ca-certificates"
+    new=0
+    for crt in /usr/local/share/ca-certificates/*.crt; do
+        cmp -s "$crt" "$ROOT/usr/local/share/ca-certificates/${crt##*/}" || { cp "$crt" "$ROOT/usr/local/share/ca-certificates/"; new=1; }
+    done
+    if [ "$new" = 1 ] && [ -x "$ROOT/usr/sbin/update-ca-certificates" ]; then
+        chroot "$ROOT" /usr/sbin/update-ca-certificates >/dev/null 2>&1 || true
+    fi
+fi
 [ -f /etc/hosts ] && cp /etc/hosts "$ROOT/etc/hosts"
 
 # Clean environment for the command inside.
@@ -205,7 +226,7 @@ if [ "${CFCONTACT_NO_INSTALL:-}" != 1 ] && [ -x scripts/install.sh ]; then
 fi
 "$@"'
 
-say "running in Debian 13 root ($ROOT), in $WORK: $*"
+say "running in $LABEL root ($ROOT), in $WORK: $*"
 MOUNTED_HERE=0
 cleanup() {
     if [ "$MOUNTED_HERE" = 1 ]; then
