@@ -88,10 +88,7 @@ def contact_report(path=None, *, system=None, declared=None) -> dict:
     declared = declared or {}
     geo = path.geometry
     nodes = np.asarray(geo.contact_nodes, dtype=np.int64).reshape(-1, 2)
-    points = np.asarray(geo.points, dtype=float)[:, :2]
-    cpts = np.asarray(geo.contact_points, dtype=float).reshape(-1, 2)
-    body2_slave = bool(len(nodes)) and np.all(nodes[:, 1] >= 0) and np.array_equal(cpts, points[nodes[:, 1]]) \
-        and not np.array_equal(cpts, points[nodes[:, 0]])
+    body2_slave = bool(len(nodes)) and bool(np.all(geo.slave_nodes() == nodes[:, 1]))
     obstacle = getattr(geo, "obstacle", None)
     master = ("obstacle" if obstacle else "rigid foundation" if len(nodes) and np.all(nodes[:, 1] < 0) else
               "contact1=10" if body2_slave else "contact2=20")
