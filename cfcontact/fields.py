@@ -233,12 +233,11 @@ def _pair_field(geometry, values) -> np.ndarray:
     return out
 
 
-def _traction_field(geometry, values) -> np.ndarray:
-    """values / tributary length on the slave node of each pair, 0 elsewhere."""
-    nodes = geometry.slave_nodes()
-    trib = np.asarray(geometry.tributary, dtype=float).ravel()
-    out = np.zeros(len(geometry.points))
-    out[nodes] = np.asarray(values, dtype=float).ravel() / trib
+def _traction_field(size, slave, trib, values) -> np.ndarray:
+    """values / tributary length ``trib`` on the slave nodes ``slave`` of the pairs, 0 elsewhere
+    (``size`` nodes)."""
+    out = np.zeros(size)
+    out[slave] = np.asarray(values, dtype=float).ravel() / trib
     return out
 
 
@@ -319,7 +318,9 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
         cell_material(geometry, material)  # check before writing anything
     alphas = None if alphas is None else [float(a) for a in alphas]
     trib = getattr(geometry, "tributary", None)
-    tractions = trib is not None and np.all(np.asarray(trib, dtype=float) > 0)
+    trib = None if trib is None else np.asarray(trib, dtype=float).ravel()
+    tractions = trib is not None and bool(np.all(trib > 0))
+    slave = geometry.slave_nodes() if tractions else None
     P = np.asarray(geometry.points, dtype=float)
     points3 = np.column_stack([P[:, :2], np.zeros(len(P))])
     body = np.asarray(geometry.cell_body).astype(np.int64)
@@ -359,8 +360,8 @@ def write_xdmf(filename, geometry, solutions: Iterable, alphas=None, material=No
                 fh.write(_attribute("lam_n", "Node", _pair_field(geometry, sol.lam_n), 8))
                 fh.write(_attribute("lam_t", "Node", _pair_field(geometry, sol.lam_t), 8))
                 if tractions:
-                    fh.write(_attribute("contact_pressure", "Node", _traction_field(geometry, sol.lam_n), 8))
-                    fh.write(_attribute("contact_shear", "Node", _traction_field(geometry, sol.lam_t), 8))
+                    for name, lam in (("contact_pressure", sol.lam_n), ("contact_shear", sol.lam_t)):
+                        fh.write(_attribute(name, "Node", _traction_field(len(P), slave, trib, lam), 8))
                 fh.write(_attribute("body", "Cell", body, 8))
                 if material is not None:
                     fh.write(_attribute("von_mises", "Cell", von_mises(geometry, u, material, alpha), 8))
