@@ -731,18 +731,15 @@ def _setup_bench(sub, common):
 
 def cmd_map(args):
     """``cfcontact map CASE.toml``: the friction map of the case's load path (:mod:`cfcontact.map_run`)."""
-    from cfcontact.map_run import map_case
+    from cfcontact.map_run import check_grid, map_case
 
     bad = [m for m in (args.mark or []) if not (math.isfinite(m) and m >= 0)]
     if bad:
         raise CaseError(f"--mark: friction coefficients are finite numbers >= 0, got {bad[0]}")
-    if args.friction_range and not (all(math.isfinite(F) and 0 <= F <= MAX_FRICTION for F in args.friction_range)
-                                    and args.friction_range[0] < args.friction_range[1]):
+    if args.friction_range and not all(math.isfinite(F) and 0 <= F <= MAX_FRICTION for F in args.friction_range):
         raise CaseError(f"--friction-range: need 0 <= F0 < F1 <= {MAX_FRICTION:g}, got {args.friction_range[0]} "
                         f"{args.friction_range[1]}")
-    for flag, n in (("--frictions", args.frictions), ("--alphas", args.alphas)):  # (before any folder is made)
-        if not 2 <= n <= 100000:
-            raise CaseError(f"{flag}: need 2..100000 grid points, got {n}")
+    check_grid(args.friction_range, args.frictions, args.alphas)  # (before any folder is made)
     case = load_case(args.case)
     if args.output:
         output_folder(os.path.dirname(os.path.abspath(args.output)), repr(args.output), "-o")

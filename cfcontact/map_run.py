@@ -20,7 +20,7 @@ from cfcontact.case import CaseError, build_system
 from cfcontact.jsonio import holds_format
 from cfcontact.run import replaceable_output
 
-__all__ = ["map_case", "DEFAULT_POINTS"]
+__all__ = ["map_case", "check_grid", "DEFAULT_POINTS"]
 
 DEFAULT_POINTS = 200
 
@@ -30,6 +30,18 @@ def default_friction_range(case) -> tuple:
     fr = case["contact"].get("friction", 0.0)
     top = float(max(fr) if isinstance(fr, list) else fr)
     return 0.0, max(top, 1.0)
+
+
+def check_grid(friction_range, n_frictions, n_alphas):
+    """CaseError unless the friction range (None: the case's default) is 0 <= F0 < F1 (finite)
+    and both grids have 2..100000 points."""
+    if friction_range is not None:
+        F_lo, F_hi = friction_range
+        if not (0 <= F_lo < F_hi and np.isfinite(F_hi)):
+            raise CaseError(f"--friction-range: need 0 <= F0 < F1, got {F_lo} {F_hi}")
+    for name, n in (("--frictions", n_frictions), ("--alphas", n_alphas)):
+        if not 2 <= int(n) <= 100000:
+            raise CaseError(f"{name}: need 2..100000 grid points, got {n}")
 
 
 def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS, n_alphas=DEFAULT_POINTS,
@@ -47,11 +59,7 @@ def map_case(case, output=None, friction_range=None, n_frictions=DEFAULT_POINTS,
         out = os.path.join(os.path.dirname(case["_file"]), f"{stem}_map")
     replaceable_output(out, force, _is_map_folder, "a cfcontact map folder (no map.json); choose another --output")
     F_lo, F_hi = friction_range if friction_range is not None else default_friction_range(case)
-    if not (0 <= F_lo < F_hi and np.isfinite(F_hi)):
-        raise CaseError(f"--friction-range: need 0 <= F0 < F1, got {F_lo} {F_hi}")
-    for name, n in (("--frictions", n_frictions), ("--alphas", n_alphas)):
-        if not 2 <= int(n) <= 100000:
-            raise CaseError(f"{name}: need 2..100000 grid points, got {n}")
+    check_grid((F_lo, F_hi), n_frictions, n_alphas)
     if marks is None:
         fr = case["contact"].get("friction", 0.0)
         marks = [] if isinstance(fr, list) else [float(fr)]
